@@ -1,0 +1,126 @@
+"""`mvo-gcs`: the command line of the product."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from planner.optimizers import ALGORITHMS
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _add_executor_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=None,
+        help="local worker processes (default: one per core)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="run on this Dask scheduler (e.g. tcp://127.0.0.1:8786) instead of a local pool",
+    )
+
+
+def _reproduce_benchmarks(args: argparse.Namespace) -> int:
+    from planner.experiments.benchmark_study import StudyConfig, run_study
+
+    config = StudyConfig(
+        seeds=args.seeds,
+        figure_seeds=min(args.seeds, 10),
+        iterations=args.iterations,
+        tolerances=tuple(args.tolerance),
+        quick=args.quick,
+        algorithms=tuple(args.algorithms),
+    )
+    report = run_study(config, args.out, workers=args.workers, scheduler=args.scheduler)
+    print(f"wrote {report}")
+    return 0
+
+
+def _bench_optimizers(args: argparse.Namespace) -> int:
+    from planner.experiments.library_comparison import ComparisonConfig, run_comparison
+
+    config = ComparisonConfig(
+        seeds=args.seeds,
+        iterations=args.iterations,
+        population=args.population,
+        dim=args.dim,
+        algorithms=tuple(args.algorithms),
+    )
+    out = run_comparison(config, args.out)
+    print(f"wrote {out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mvo-gcs", description="MVO multi-UAV path planning and ground station"
+    )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    reproduce = commands.add_parser("reproduce", help="reproduce the paper's tables and figures")
+    studies = reproduce.add_subparsers(dest="study", required=True, metavar="STUDY")
+    bench_fns = studies.add_parser(
+        "benchmarks",
+        help="Table II (NFE to the optimum) and Fig. 1 (convergence) on benchmark functions",
+    )
+    bench_fns.add_argument("--out", type=Path, required=True, help="output directory")
+    bench_fns.add_argument("--seeds", type=_positive_int, default=30)
+    bench_fns.add_argument("--iterations", type=_positive_int, default=1000)
+    bench_fns.add_argument(
+        "--tolerance",
+        type=float,
+        nargs="+",
+        default=[1e-8, 1e-2],
+        help="a run reaches the optimum when its best cost is within this of it; "
+        "one Table II per value, the first is the headline (default: 1e-8 1e-2)",
+    )
+    bench_fns.add_argument(
+        "--quick", action="store_true", help="a smaller Fig. 1 grid (fewer dimensions and sizes)"
+    )
+    bench_fns.add_argument(
+        "--algorithms", nargs="+", choices=sorted(ALGORITHMS), default=list(ALGORITHMS)
+    )
+    _add_executor_options(bench_fns)
+    bench_fns.set_defaults(handler=_reproduce_benchmarks)
+
+    bench = commands.add_parser("bench", help="speed benchmarks (results under bench/)")
+    benches = bench.add_subparsers(dest="bench", required=True, metavar="BENCH")
+    libs = benches.add_parser(
+        "optimizers",
+        help="our six optimizers against mealpy and EvoloPy (needs the 'bench' extra)",
+    )
+    libs.add_argument("--out", type=Path, default=Path("bench/results/optimizers.md"))
+    libs.add_argument("--seeds", type=_positive_int, default=10)
+    libs.add_argument("--iterations", type=_positive_int, default=1000)
+    libs.add_argument("--population", type=_positive_int, default=30)
+    libs.add_argument("--dim", type=_positive_int, default=30)
+    libs.add_argument(
+        "--algorithms", nargs="+", choices=sorted(ALGORITHMS), default=list(ALGORITHMS)
+    )
+    libs.set_defaults(handler=_bench_optimizers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
