@@ -135,3 +135,18 @@ def test_cli_rejects_bad_arguments(argv: list[str], capsys) -> None:
         main(argv)
     assert exit_info.value.code == 2
     assert "error" in capsys.readouterr().err
+
+
+def test_table_runs_are_reused_by_the_figure_grid() -> None:
+    config = StudyConfig(
+        seeds=2,
+        iterations=5,
+        figure_seeds=2,
+        figure_dims=(10, 30),
+        figure_populations=(10, 30),
+        table_functions=("rastrigin",),
+        figure_functions=("rastrigin",),
+    )
+    table, figure = config.table_runs(), config.figure_runs()
+    assert set(table) <= set(figure)
+    assert len(set(table + figure)) == len(figure) == 4 * 6 * 2
