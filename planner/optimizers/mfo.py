@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -26,7 +27,8 @@ class MFO(Algorithm):
         flames = np.empty((0, d))
         flame_costs = np.empty(0)
         for t in range(1, iterations + 1):
-            flame_no = round(n - t * (n - 1) / iterations)  # eq. (3.14)
+            # Eq. (3.14), rounding halves up like MATLAB's round (Python's rounds to even).
+            flame_no = math.floor(n - t * (n - 1) / iterations + 0.5)
             moths = problem.clip(moths)
             costs = problem.evaluate(moths)
             # Flames: the best n of the moths and the previous flames. MFO.m merges the

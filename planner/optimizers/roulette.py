@@ -17,11 +17,12 @@ def roulette_wheel(
     the white hole is then always the best universe, as in the reference code.
     """
     acc = np.cumsum(weights)
-    if np.all(np.diff(acc) <= 0):
-        return np.zeros(size, dtype=np.intp)
-    with np.errstate(invalid="ignore", over="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):  # an infinite weight (ALO: 1 / 0)
+        steps = np.diff(acc)
+        if np.all(steps <= 0):
+            return np.zeros(size, dtype=np.intp)
         target = rng.random(size) * acc[-1]
-    if np.all(np.diff(acc) >= 0):
+    if np.all(steps >= 0):
         idx = np.searchsorted(acc, target, side="right")
         idx[(idx >= acc.size) | np.isnan(target)] = 0
         return idx

@@ -6,6 +6,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from planner.optimizers.algorithm import Algorithm, Best, track_best
 from planner.optimizers.problem import Problem
@@ -39,18 +40,45 @@ class WOA(Algorithm):
             spiral_l = (a2 - 1.0) * rng.random(n) + 1.0
             p = rng.random(n)
             # WOA.m draws the random whale anew for every coordinate.
-            partner = whales[rng.integers(0, n, size=(n, d)), np.arange(d)]
-
-            searching = (np.abs(big_a) >= 1.0)[:, None]
-            target = np.where(searching, partner, best.x)  # eq. (2.8) or eq. (2.1)
-            encircle = target - big_a[:, None] * np.abs(big_c[:, None] * target - whales)
+            partner = rng.integers(0, n, size=(n, d))
+            a_col, c_col = big_a[:, None], big_c[:, None]
             spiral = (  # eq. (2.5)
                 np.abs(best.x - whales)
                 * np.exp(self.spiral_shape * spiral_l)[:, None]
                 * np.cos(2.0 * np.pi * spiral_l)[:, None]
                 + best.x
             )
-            # WOA.m updates whales in place, so a later whale may pull toward an earlier
-            # whale's new position; updating all from the same snapshot is the vectorised
-            # (synchronous) form of that step.
-            whales = np.where((p < 0.5)[:, None], encircle, spiral)
+            encircle = best.x - a_col * np.abs(c_col * best.x - whales)  # eq. (2.1)
+            fixed = np.where((p < 0.5)[:, None], encircle, spiral)
+            searching = ((p < 0.5) & (np.abs(big_a) >= 1.0))[:, None]
+            whales = _search_in_order(whales, fixed, searching, partner, a_col, c_col)
+
+
+def _search_in_order(
+    whales: NDArray[np.float64],
+    fixed: NDArray[np.float64],
+    searching: NDArray[np.bool_],
+    partner: NDArray[np.intp],
+    a_col: NDArray[np.float64],
+    c_col: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """New positions with eq. (2.8) for the searching whales, exactly as WOA.m's in-place loop.
+
+    WOA.m moves whales one after another, so a whale searching around a partner that
+    has already moved (a lower index) reads the partner's new coordinate. A coordinate
+    depends only on the same coordinate of an earlier whale, so these chains are short
+    (about log n on average). Repeating the vectorised update until the partners' values
+    stop changing resolves them in as many rounds as the longest chain, giving exactly
+    the sequential result without a loop over whales.
+    """
+    n, d = whales.shape
+    cols = np.arange(d)
+    moved_before = partner < np.arange(n)[:, None]
+    source = whales[partner, cols]
+    for _ in range(n + 1):
+        new = np.where(searching, source - a_col * np.abs(c_col * source - whales), fixed)
+        updated = np.where(moved_before, new[partner, cols], source)
+        if np.array_equal(updated, source):
+            return new
+        source = updated
+    raise AssertionError("whale dependencies must form chains shorter than the population")
