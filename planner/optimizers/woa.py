@@ -50,7 +50,7 @@ class WOA(Algorithm):
             )
             encircle = best.x - a_col * np.abs(c_col * best.x - whales)  # eq. (2.1)
             fixed = np.where((p < 0.5)[:, None], encircle, spiral)
-            searching = ((p < 0.5) & (np.abs(big_a) >= 1.0))[:, None]
+            searching = (p < 0.5) & (np.abs(big_a) >= 1.0)
             whales = _search_in_order(whales, fixed, searching, partner, a_col, c_col)
 
 
@@ -71,13 +71,19 @@ def _search_in_order(
     stop changing resolves them in as many rounds as the longest chain, giving exactly
     the sequential result without a loop over whales.
     """
-    n, d = whales.shape
-    cols = np.arange(d)
-    moved_before = partner < np.arange(n)[:, None]
-    source = whales[partner, cols]
-    for _ in range(n + 1):
-        new = np.where(searching, source - a_col * np.abs(c_col * source - whales), fixed)
-        updated = np.where(moved_before, new[partner, cols], source)
+    rows = np.flatnonzero(searching)
+    if rows.size == 0:  # always so once a < 1, in the second half of the run
+        return fixed
+    cols = np.arange(whales.shape[1])
+    partners = partner[rows]
+    moved_before = partners < rows[:, None]
+    old = whales[partners, cols]
+    a, c, own = a_col[rows], c_col[rows], whales[rows]
+    new = fixed.copy()
+    source = old
+    for _ in range(rows.size + 1):
+        new[rows] = source - a * np.abs(c * source - own)
+        updated = np.where(moved_before, new[partners, cols], old)
         if np.array_equal(updated, source):
             return new
         source = updated
