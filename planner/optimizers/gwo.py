@@ -18,6 +18,9 @@ class GWO(Algorithm):
 
     name = "gwo"
     min_population = 3
+    # GWO.m keeps an old alpha when a better wolf arrives instead of demoting it to beta.
+    # EvoloPy demotes it (the leaders are then truly the best three distinct wolves so far).
+    demote_leaders: bool = False
 
     def iterate(
         self, problem: Problem, population: int, iterations: int, rng: np.random.Generator
@@ -29,7 +32,8 @@ class GWO(Algorithm):
         for t in range(iterations):
             wolves = problem.clip(wolves)
             costs = problem.evaluate(wolves)
-            _update_leaders(leaders, scores, wolves, costs)
+            update = _rank_leaders if self.demote_leaders else _update_leaders
+            update(leaders, scores, wolves, costs)
             yield Best(leaders[0].copy(), float(scores[0]))
 
             a = 2.0 - t * 2.0 / iterations  # decreases linearly from 2 to 0
@@ -65,3 +69,21 @@ def _update_leaders(
         if pool[i] < scores[k]:
             scores[k] = pool[i]
             leaders[k] = wolves[i]
+
+
+def _rank_leaders(
+    leaders: NDArray[np.float64],
+    scores: NDArray[np.float64],
+    wolves: NDArray[np.float64],
+    costs: NDArray[np.float64],
+) -> None:
+    """EvoloPy's update: a better wolf pushes the others down, equal costs are not inserted.
+
+    Inserting wolf after wolf into a sorted top three with strict comparisons leaves the
+    three smallest distinct costs, each held by the first wolf that reached it.
+    """
+    pool = np.concatenate([scores, costs])
+    values, first = np.unique(pool, return_index=True)
+    k = min(3, values.size)
+    scores[:k] = values[:k]
+    leaders[:k] = np.concatenate([leaders, wolves])[first[:k]]

@@ -388,3 +388,32 @@ def test_woa_search_reproduces_the_in_place_loop_exactly() -> None:
                 target = expected[partner[i, j], j] if searching[i] else best[j]
                 expected[i, j] = target - big_a[i] * abs(big_c[i] * target - expected[i, j])
         np.testing.assert_array_equal(moved, expected)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    costs=st.lists(st.integers(0, 6).map(float), min_size=1, max_size=12),
+    start=st.lists(st.integers(0, 8).map(float), min_size=3, max_size=3),
+)
+def test_gwo_demoting_leaders_match_evolopys_loop(costs: list[float], start: list[float]) -> None:
+    """`GWO(demote_leaders=True)` against EvoloPy's wolf-by-wolf insertion, ties included."""
+    from planner.optimizers.gwo import _rank_leaders
+
+    scores = np.sort(np.array(start))
+    scores[1:] = np.where(scores[1:] == scores[:-1], np.inf, scores[1:])  # distinct leaders
+    scores = np.sort(scores)
+    wolves = np.arange(len(costs), dtype=float)[:, None] + 10
+    leaders = np.array([[-1.0], [-2.0], [-3.0]])
+    got_leaders, got_scores = leaders.copy(), scores.copy()
+    _rank_leaders(got_leaders, got_scores, wolves, np.array(costs))
+
+    alpha, beta, delta = [(scores[k], leaders[k].copy()) for k in range(3)]
+    for f, x in zip(costs, wolves, strict=True):
+        if f < alpha[0]:
+            delta, beta, alpha = beta, alpha, (f, x)
+        if alpha[0] < f < beta[0]:
+            delta, beta = beta, (f, x)
+        if f > alpha[0] and f > beta[0] and f < delta[0]:
+            delta = (f, x)
+    np.testing.assert_array_equal(got_scores, [alpha[0], beta[0], delta[0]])
+    np.testing.assert_array_equal(got_leaders, np.stack([alpha[1], beta[1], delta[1]]))
