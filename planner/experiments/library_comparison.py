@@ -14,6 +14,7 @@ import importlib
 import os
 import platform
 import random
+import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -28,7 +29,7 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from planner.benchmarks import BENCHMARKS, BenchmarkFunction
-from planner.optimizers import ALGORITHMS, optimize
+from planner.optimizers import ALGORITHMS, GWO, Algorithm, optimize
 
 LIBRARIES = ("ours", "mealpy", "evolopy")
 MEALPY_CLASSES = {
@@ -40,6 +41,11 @@ MEALPY_CLASSES = {
     "woa": ("mealpy.swarm_based.WOA", "OriginalWOA"),
 }
 EVOLOPY_FUNCTIONS = {"mvo": "MVO", "gwo": "GWO", "mfo": "MFO", "woa": "WOA"}  # no ALO, no DA
+# Variants of ours that adopt one of EvoloPy's own rules, to show where a difference comes from.
+VARIANTS: dict[str, tuple[str, Algorithm]] = {
+    "gwo": ("GWO with EvoloPy's leader demotion", GWO(demote_leaders=True)),
+}
+VARIANT = "ours-variant"
 SPEED_TARGET = 10.0  # ours must be at least this many times faster than the faster library
 ALPHA = 0.05  # Mann-Whitney significance level
 INSTALL_HINT = "pip install -e '.[bench]'"
@@ -102,10 +108,11 @@ def run_comparison(
     """Run the whole comparison; write the markdown report and the raw CSV beside it."""
     _check_config(config)
     libs = _import_libraries()
+    code = _code_version()  # the optimizers are imported by now: what the runs will measure
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     runs = _run_all(config, libs, out_path.with_suffix(".csv"))
-    out_path.write_text(_report(config, runs, libs, out_path), encoding="utf-8")
+    out_path.write_text(_report(config, runs, libs, out_path, code), encoding="utf-8")
     return out_path
 
 
@@ -133,7 +140,8 @@ def _import_libraries() -> _Libraries:
 
 
 def _libraries_for(algorithm: str) -> tuple[str, ...]:
-    return tuple(lib for lib in LIBRARIES if lib != "evolopy" or algorithm in EVOLOPY_FUNCTIONS)
+    libraries = [lib for lib in LIBRARIES if lib != "evolopy" or algorithm in EVOLOPY_FUNCTIONS]
+    return (*libraries, VARIANT) if algorithm in VARIANTS else tuple(libraries)
 
 
 def _plan(config: ComparisonConfig) -> list[tuple[str, str, int, str]]:
@@ -175,13 +183,19 @@ def _run_one(
         "ours": _run_ours,
         "mealpy": _run_mealpy,
         "evolopy": _run_evolopy,
+        VARIANT: _run_ours,
     }[library]
-    seconds, best, nfe = runner(libs, bench, algorithm, config, seed)
+    chosen = VARIANTS[algorithm][1] if library == VARIANT else algorithm
+    seconds, best, nfe = runner(libs, bench, chosen, config, seed)
     return Run(bench.name, algorithm, library, seed, seconds, best, nfe)
 
 
 def _run_ours(
-    libs: _Libraries, bench: BenchmarkFunction, algorithm: str, config: ComparisonConfig, seed: int
+    libs: _Libraries,
+    bench: BenchmarkFunction,
+    algorithm: str | Algorithm,
+    config: ComparisonConfig,
+    seed: int,
 ) -> tuple[float, float, int]:
     lower, upper = bench.bounds(config.dim)
     rng = np.random.default_rng(seed)
@@ -336,12 +350,36 @@ def _nfe_table(runs: list[Run], config: ComparisonConfig, function: str) -> str:
     return "\n".join(lines)
 
 
+def _variant_rows(
+    libs: _Libraries, runs: list[Run], config: ComparisonConfig, function: str
+) -> str:
+    """Diagnostic rows: our variants that adopt an EvoloPy rule, against EvoloPy."""
+    rows = []
+    for algorithm in (a for a in config.algorithms if a in VARIANTS):
+        variant = _values(runs, function, algorithm, VARIANT, "best_cost")
+        evo = _values(runs, function, algorithm, "evolopy", "best_cost")
+        p = _p_value(libs, variant, evo)
+        verdict = "indistinguishable" if p >= ALPHA else "**differs**"
+        rows.append(
+            f"| {VARIANTS[algorithm][0]} | {_fmt(_median(variant), '.4g')} | "
+            f"{_fmt(_median(evo), '.4g')} | {_fmt(p)} | {verdict} |"
+        )
+    if not rows:
+        return ""
+    return (
+        "\nDiagnostic: ours with one EvoloPy rule adopted, against EvoloPy (same seeds):\n\n"
+        "| variant | ours-variant median best | EvoloPy median best | Mann-Whitney p | verdict |\n"
+        "|---|---:|---:|---:|---|\n" + "\n".join(rows) + "\n"
+    )
+
+
 def _function_section(
     libs: _Libraries, runs: list[Run], config: ComparisonConfig, function: str
 ) -> str:
     rows = "\n".join(_table_row(libs, runs, function, a) for a in config.algorithms)
     return (
-        f"## {function.capitalize()} (dim {config.dim})\n\n{_TABLE_HEADER}\n{rows}\n\n"
+        f"## {function.capitalize()} (dim {config.dim})\n\n{_TABLE_HEADER}\n{rows}\n"
+        f"{_variant_rows(libs, runs, config, function)}\n"
         "Objective evaluations per run (median; mealpy also evaluates its initial population "
         f"before its {config.iterations} iterations):\n\n{_nfe_table(runs, config, function)}\n"
     )
@@ -362,7 +400,29 @@ def _package_version(name: str) -> str:
         return "not installed"
 
 
-def _machine() -> str:
+_MEASURED = ("planner/optimizers", "planner/benchmarks.py")
+
+
+def _code_version() -> str:
+    """The git commit of this checkout, flagged if the measured code has uncommitted changes."""
+    root = Path(__file__).resolve().parents[2]
+    try:
+        commit = _git(root, "rev-parse", "--short", "HEAD")
+        dirty = _git(root, "status", "--porcelain", "--", *_MEASURED)
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown (not a git checkout)"
+    return f"git {commit}" + (
+        f" with uncommitted changes in {', '.join(_MEASURED)}" if dirty else ""
+    )
+
+
+def _git(root: Path, *args: str) -> str:
+    return subprocess.run(
+        ["git", *args], cwd=root, capture_output=True, text=True, check=True
+    ).stdout.strip()
+
+
+def _machine(code: str) -> str:
     usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else "?"
     items = {
         "platform": platform.platform(),
@@ -373,6 +433,7 @@ def _machine() -> str:
         "scipy": _package_version("scipy"),
         "mealpy": _package_version("mealpy"),
         "EvoloPy": _package_version("evolopy"),
+        "code": code,
     }
     return "\n".join(f"- {key}: {value}" for key, value in items.items())
 
@@ -388,7 +449,9 @@ def _command(config: ComparisonConfig, out_path: Path) -> str:
     return command
 
 
-def _report(config: ComparisonConfig, runs: list[Run], libs: _Libraries, out_path: Path) -> str:
+def _report(
+    config: ComparisonConfig, runs: list[Run], libs: _Libraries, out_path: Path, code: str
+) -> str:
     sections = "\n".join(_function_section(libs, runs, config, f) for f in config.functions)
     return f"""# Our optimizers against mealpy and EvoloPy
 
@@ -407,7 +470,7 @@ their quality is not tested.
 
 ## Machine
 
-{_machine()}
+{_machine(code)}
 
 ## Command
 
@@ -424,9 +487,9 @@ _EXPLANATIONS = """## Why mealpy's figures differ
 mealpy 3.0.3's `Original*` classes are not line-for-line ports of the authors' MATLAB code,
 so their best costs are not expected to match ours or EvoloPy's. Read from its source:
 
-- **Greedy selection.** MVO, GWO, MFO, WOA and DO evaluate every new candidate at once and
-  keep it only if it beats the agent it came from (`get_better_agent`); an agent never gets
-  worse. The original algorithms move every agent unconditionally.
+- **Greedy selection.** MVO, GWO, MFO, WOA and DO evaluate every new candidate as soon as
+  it is made and keep it only if it beats the agent it came from (`get_better_agent`); an
+  agent never gets worse. The original algorithms move every agent unconditionally.
 - **MVO.** The normalised inflation rate is `(f - min f) / sum(f - min f)` (`normalize__`),
   not MATLAB's `normr`, `f / ||f||`; the exchange probabilities are therefore much smaller.
 - **WOA.** The "random whale" of the search phase is a fresh uniform point in the box
@@ -450,8 +513,11 @@ so their best costs are not expected to match ours or EvoloPy's. Read from its s
   NFE table), and beyond the flame count it uses flame `Flame_no` (0-based), one more than
   MFO.m.
 - Its GWO demotes the old alpha to beta (and beta to delta) when a new alpha is found; GWO.m,
-  which ours follows, does not.
-- It moves agents one at a time in place (a later agent sees an earlier one's new position);
-  ours moves the whole population from one snapshot.
+  which ours follows, does not. That rule alone is enough to make GWO's best costs differ
+  from ours: with the demotion removed, EvoloPy's GWO matches ours.
+- Its WOA moves whales one at a time in place, so a whale searching around a lower-index
+  partner reads that partner's new position; ours reproduces that exactly (see
+  `planner/optimizers/woa.py`). In MVO, GWO and MFO no agent reads another's new position,
+  so the order does not matter there.
 - It prints one line per iteration; that printing (to `/dev/null` here) is part of its time.
 """

@@ -34,13 +34,11 @@ class WOA(Algorithm):
             a = 2.0 - t * 2.0 / iterations  # 2 -> 0, eq. (2.3)
             a2 = -1.0 - t / iterations  # -1 -> -2, for l
             # One A, C, l and p per whale, as WOA.m draws them outside the dimension loop.
-            big_a = 2.0 * a * rng.random(n) - a  # eq. (2.3)
-            big_c = 2.0 * rng.random(n)  # eq. (2.4)
+            r1, r2, r3, p = rng.random((4, n))
+            big_a = 2.0 * a * r1 - a  # eq. (2.3)
+            big_c = 2.0 * r2  # eq. (2.4)
             # The paper takes l in [-1, 1]; WOA.m draws it in [a2, 1], which we follow.
-            spiral_l = (a2 - 1.0) * rng.random(n) + 1.0
-            p = rng.random(n)
-            # WOA.m draws the random whale anew for every coordinate.
-            partner = rng.integers(0, n, size=(n, d))
+            spiral_l = (a2 - 1.0) * r3 + 1.0
             a_col, c_col = big_a[:, None], big_c[:, None]
             spiral = (  # eq. (2.5)
                 np.abs(best.x - whales)
@@ -51,6 +49,11 @@ class WOA(Algorithm):
             encircle = best.x - a_col * np.abs(c_col * best.x - whales)  # eq. (2.1)
             fixed = np.where((p < 0.5)[:, None], encircle, spiral)
             searching = (p < 0.5) & (np.abs(big_a) >= 1.0)
+            if not searching.any():  # always so once a < 1, in the second half of the run
+                whales = fixed
+                continue
+            # WOA.m draws the random whale anew for every coordinate.
+            partner = rng.integers(0, n, size=(n, d))
             whales = _search_in_order(whales, fixed, searching, partner, a_col, c_col)
 
 
@@ -72,8 +75,6 @@ def _search_in_order(
     the sequential result without a loop over whales.
     """
     rows = np.flatnonzero(searching)
-    if rows.size == 0:  # always so once a < 1, in the second half of the run
-        return fixed
     cols = np.arange(whales.shape[1])
     partners = partner[rows]
     moved_before = partners < rows[:, None]

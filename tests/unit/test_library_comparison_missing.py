@@ -1,0 +1,19 @@
+"""Without the 'bench' extra the comparison says what to install instead of failing deep inside."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from gcs.cli import main
+from planner.experiments.library_comparison import BenchDependencyError
+
+HAVE_BENCH = all(importlib.util.find_spec(m) for m in ("mealpy", "EvoloPy", "scipy"))
+
+
+@pytest.mark.skipif(HAVE_BENCH, reason="the 'bench' extra is installed here")
+def test_missing_libraries_give_an_install_hint(tmp_path: Path) -> None:
+    with pytest.raises(BenchDependencyError, match=r"pip install -e '\.\[bench\]'"):
+        main(["bench", "optimizers", "--out", str(tmp_path / "x.md"), "--seeds", "1"])
