@@ -7,7 +7,11 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from planner.optimizers import ALGORITHMS
+from planner.experiments.library_comparison import BenchDependencyError
+from planner.optimizers import ALGORITHMS, ObjectiveError, OptimizerInputError
+
+USER_ERRORS = (OptimizerInputError, ObjectiveError, BenchDependencyError)
+"""Errors a user can cause: reported in one line, exit code 2, no traceback."""
 
 
 def _positive_int(text: str) -> int:
@@ -114,9 +118,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     try:
         return args.handler(args)
+    except USER_ERRORS as exc:
+        parser.exit(2, f"{parser.prog}: error: {exc}\n")
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
