@@ -7,10 +7,19 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from pydantic import ValidationError
+
+from planner.cases import CASES, load_case
 from planner.experiments.library_comparison import BenchDependencyError
 from planner.optimizers import ALGORITHMS, ObjectiveError, OptimizerInputError
+from planner.scenario import Scenario, load_scenario
 
-USER_ERRORS = (OptimizerInputError, ObjectiveError, BenchDependencyError)
+
+class ScenarioFileError(ValueError):
+    """The scenario file is missing, unreadable or invalid."""
+
+
+USER_ERRORS = (OptimizerInputError, ObjectiveError, BenchDependencyError, ScenarioFileError)
 """Errors a user can cause: reported in one line, exit code 2, no traceback."""
 
 
@@ -67,6 +76,58 @@ def _bench_optimizers(args: argparse.Namespace) -> int:
     return 0
 
 
+def _read_scenario(source: str) -> Scenario:
+    """A scenario file, or the name of one of the paper's cases (case-1 .. case-6)."""
+    path = Path(source)
+    if not path.exists() and source in CASES:
+        return load_case(source)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ScenarioFileError(f"cannot read scenario {source}: {exc.strerror}") from exc
+    try:
+        return load_scenario(text)
+    except ValidationError as exc:
+        raise ScenarioFileError(f"{source} is not a valid scenario:\n{_describe(exc)}") from exc
+
+
+def _describe(exc: ValidationError) -> str:
+    lines = []
+    for error in exc.errors():
+        where = ".".join(str(p) for p in error["loc"]) or "scenario"
+        lines.append(f"  {where}: {error['msg'].removeprefix('Value error, ')}")
+    return "\n".join(lines)
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from planner.pipeline import PlannerSettings, plan
+
+    scenario = _read_scenario(args.scenario)
+    settings = PlannerSettings(
+        algorithm=args.algorithm,
+        objective=args.objective,
+        seed=args.seed,
+        population=args.population,
+        iterations=args.iterations,
+    )
+    result = plan(scenario, settings)
+    text = result.model_dump_json(indent=2)
+    if args.output:
+        args.output.write_text(text + "\n")
+    else:
+        print(text)
+    m = result.metrics
+    summary = (
+        f"{scenario.name}: {'feasible' if result.feasible else 'NOT feasible'}, "
+        f"{m.conflicts} conflicts, total length {m.total_length:.2f} cells, "
+        f"mean deviation {m.mean_deviation:.2f}, {m.nfe} evaluations, {m.seconds:.2f} s"
+    )
+    print(summary, file=sys.stderr)
+    for conflict in result.conflicts:
+        print(f"  conflict: {conflict['message']}", file=sys.stderr)
+    return 0 if result.feasible else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mvo-gcs", description="MVO multi-UAV path planning and ground station"
@@ -98,6 +159,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_executor_options(bench_fns)
     bench_fns.set_defaults(handler=_reproduce_benchmarks)
+
+    plan = commands.add_parser(
+        "plan", help="plan collision-free paths for a scenario; exit 1 if no safe plan"
+    )
+    plan.add_argument("scenario", help="scenario JSON file, or case-1 .. case-6")
+    plan.add_argument("--algorithm", choices=sorted(ALGORITHMS), default="mvo")
+    plan.add_argument("--objective", choices=["qos", "paper"], default="qos")
+    plan.add_argument("--seed", type=int, default=1)
+    plan.add_argument("--population", type=_positive_int, default=30)
+    plan.add_argument("--iterations", type=_positive_int, default=1000)
+    plan.add_argument("-o", "--output", type=Path, help="write the plan here (default: stdout)")
+    plan.set_defaults(handler=_plan)
 
     bench = commands.add_parser("bench", help="speed benchmarks (results under bench/)")
     benches = bench.add_subparsers(dest="bench", required=True, metavar="BENCH")

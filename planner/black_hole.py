@@ -1,0 +1,113 @@
+"""Exploitation (the black hole, eq. 8): one UAV searches a new path while the others hold theirs.
+
+The optimizer (any of the six) minimises the chosen objective over the UAV's
+encoding, against the other UAVs' fixed trajectories and the blocked cells. The
+unchanged path is scored too, and a short polish afterwards straightens what the
+search left bent (a waypoint that can go without raising the cost goes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.clearance import ClearanceField
+from planner.objectives import PathObjective
+from planner.optimizers import Algorithm, OptimizeResult, Progress, optimize
+from planner.path_cost import PathTerms, Traffic, evaluate_paths
+from planner.path_encoding import DetourEncoding, TurnEncoding
+from planner.trajectory import Trajectory, merge_collinear
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Search:
+    """What one replanning run needs besides the encoding."""
+
+    speed: float
+    radius: float
+    goal: Array
+    traffic: Traffic
+    field: ClearanceField
+    objective: PathObjective
+
+    def terms(self, waypoints: Array, waits: Array) -> PathTerms:
+        return evaluate_paths(
+            waypoints,
+            waits,
+            speed=self.speed,
+            radius=self.radius,
+            goal=self.goal,
+            traffic=self.traffic,
+            field=self.field,
+        )
+
+    def cost(self, waypoints: Array, waits: Array) -> Array:
+        return self.objective.cost(self.terms(waypoints, waits))
+
+
+@dataclass(frozen=True)
+class Outcome:
+    trajectory: Trajectory
+    cost: float
+    safe: bool  # by the search's own (sampled obstacle) terms; the plan is checked exactly
+    result: OptimizeResult
+
+
+def search_path(
+    encoding: DetourEncoding | TurnEncoding,
+    search: Search,
+    *,
+    algorithm: str | Algorithm,
+    population: int,
+    iterations: int,
+    rng: np.random.Generator,
+    on_iteration: Callable[[Progress], bool | None] | None = None,
+) -> Outcome:
+    lower, upper = encoding.bounds()
+
+    def objective(genes: Array) -> Array:
+        return search.cost(*encoding.decode(genes))
+
+    result = optimize(
+        algorithm,
+        objective,
+        lower,
+        upper,
+        population=population,
+        iterations=iterations,
+        rng=rng,
+        callback=on_iteration,
+    )
+    waypoints, waits = encoding.decode(result.best_x[None])
+    if isinstance(encoding, DetourEncoding):
+        unchanged = encoding.decode(encoding.unchanged()[None])
+        if search.cost(*unchanged)[0] <= search.cost(waypoints, waits)[0]:
+            waypoints, waits = unchanged
+        waypoints, waits = polish(waypoints, waits, search)
+    if not waits.any():
+        waypoints = merge_collinear(waypoints[0])[None]
+        waits = np.zeros((1, waypoints.shape[1]))
+    terms = search.terms(waypoints, waits)
+    trajectory = Trajectory.from_waypoints(waypoints[0], search.speed, waits[0])
+    return Outcome(trajectory, float(search.objective.cost(terms)[0]), bool(terms.safe[0]), result)
+
+
+def polish(waypoints: Array, waits: Array, search: Search) -> tuple[Array, Array]:
+    """Greedily drop interior waypoints and hovers while the cost does not rise."""
+    best = float(search.cost(waypoints, waits)[0])
+    while waypoints.shape[1] > 2:
+        inner = waypoints.shape[1] - 2
+        keep = ~np.eye(inner + 2, dtype=bool)[1:-1]  # row k drops waypoint k + 1
+        trial_points = np.stack([waypoints[0][row] for row in keep])
+        trial_waits = np.stack([waits[0][row] for row in keep])
+        costs = np.where(waits[0, 1:-1] > 0, np.inf, search.cost(trial_points, trial_waits))
+        k = int(np.argmin(costs))
+        if costs[k] > best + 1e-9:
+            break
+        best, waypoints, waits = float(costs[k]), trial_points[k : k + 1], trial_waits[k : k + 1]
+    return waypoints, waits

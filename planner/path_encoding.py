@@ -1,0 +1,123 @@
+"""How a row of the optimizer's population becomes a path for one UAV.
+
+Two encodings, one per objective:
+
+- `DetourEncoding` (qos): the UAV's current path, as a polyline of base points (its
+  turning points plus points every couple of cells), moved point by point by an
+  offset, with a hover time at each point. Genes near zero mean "no offset" and
+  negative wait genes mean "no hover", so the unchanged path and its parts are
+  easy to hit exactly.
+- `TurnEncoding` (paper): the paper's rule. At one step of its path the UAV turns by
+  one grid cell to the left or right and flies parallel to its old path from there,
+  so it ends one cell from where that path ended.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.trajectory import merge_collinear
+
+Array = NDArray[np.float64]
+DEAD_ZONE = 0.3  # share of each offset gene's half-range that means "no offset"
+
+
+@dataclass(frozen=True)
+class DetourEncoding:
+    start: Array  # (2,)
+    goal: Array  # (2,)
+    base: Array  # (K, 2) interior base points
+    max_offset: float = 1.5  # cells
+    max_wait: float = 10.0  # seconds per hover
+
+    @classmethod
+    def around(
+        cls, path: Array, spacing: float = 2.0, max_offset: float = 1.5, max_wait: float = 10.0
+    ) -> DetourEncoding:
+        """Base points on `path` (cells or waypoints): its corners plus a point every
+        `spacing` cells, so a straight stretch can still bend."""
+        corners = merge_collinear(path)
+        points = [corners[0]]
+        for a, b in itertools.pairwise(corners):
+            pieces = max(1, int(np.ceil(np.hypot(*(b - a)) / spacing)))
+            points.extend(a + (b - a) * k / pieces for k in range(1, pieces + 1))
+        points = np.array(points)
+        return cls(points[0], points[-1], points[1:-1], max_offset, max_wait)
+
+    @property
+    def dim(self) -> int:
+        return 3 * len(self.base) + 1
+
+    def bounds(self) -> tuple[Array, Array]:
+        return -np.ones(self.dim), np.ones(self.dim)
+
+    def unchanged(self) -> Array:
+        """Genes that decode to the base path with no hovering."""
+        genes = np.zeros(self.dim)
+        genes[2 * len(self.base) :] = -1.0
+        return genes
+
+    def decode(self, genes: Array) -> tuple[Array, Array]:
+        """Waypoints (N, K + 2, 2) and hover times (N, K + 2) of a population (N, dim)."""
+        n, k = genes.shape[0], len(self.base)
+        raw = genes[:, : 2 * k].reshape(n, k, 2)
+        offset = np.sign(raw) * np.maximum(np.abs(raw) - DEAD_ZONE, 0.0) / (1 - DEAD_ZONE)
+        interior = self.base[None] + self.max_offset * offset
+        waypoints = np.concatenate(
+            [
+                np.broadcast_to(self.start, (n, 1, 2)),
+                interior,
+                np.broadcast_to(self.goal, (n, 1, 2)),
+            ],
+            axis=1,
+        )
+        waits = np.zeros((n, k + 2))
+        waits[:, : k + 1] = self.max_wait * np.maximum(genes[:, 2 * k :], 0.0)
+        return waypoints, waits
+
+
+@dataclass(frozen=True)
+class TurnEncoding:
+    cells: Array  # (M, 2) the current path, one grid step at a time
+    # A UAV that has turned before keeps turning the same way (by this grid step), so
+    # each turn adds a grid of deviation, as in the paper's cases III and IV.
+    same_way: Array | None = None
+
+    @property
+    def dim(self) -> int:
+        return 2
+
+    def bounds(self) -> tuple[Array, Array]:
+        return np.array([0.0, -1.0]), np.array([1.0, 1.0])
+
+    def decode(self, genes: Array) -> tuple[Array, Array]:
+        """Gene 0 picks the step where the UAV turns, gene 1's sign the side."""
+        steps = len(self.cells) - 1
+        n = genes.shape[0]
+        if steps < 1:
+            return np.broadcast_to(self.cells, (n, *self.cells.shape)).copy(), np.zeros(
+                (n, len(self.cells))
+            )
+        turn = np.minimum((genes[:, 0] * steps).astype(int), steps - 1)  # step turn -> turn+1
+        heading = self.cells[turn + 1] - self.cells[turn]  # (N, 2)
+        if self.same_way is not None:
+            lateral = np.broadcast_to(self.same_way, (n, 2))
+        else:
+            side = np.where(genes[:, 1] >= 0, 1.0, -1.0)[:, None]
+            lateral = side * np.column_stack([-heading[:, 1], heading[:, 0]])  # left or right
+        after = np.arange(len(self.cells))[None, :] > turn[:, None]
+        waypoints = self.cells[None] + after[..., None] * lateral[:, None, :]
+        return waypoints, np.zeros((n, len(self.cells)))
+
+
+def grid_steps(waypoints: Array) -> Array:
+    """A path through grid cells, split into single steps (for the turn rule)."""
+    cells = [np.asarray(waypoints[0], dtype=float)]
+    for a, b in itertools.pairwise(waypoints):
+        count = round(np.max(np.abs(b - a)))
+        cells.extend(a + (b - a) * k / count for k in range(1, count + 1))
+    return np.round(np.array(cells), 9)

@@ -1,0 +1,312 @@
+"""Algorithm 1 of the paper: explore (white hole), exploit (black hole), wormhole.
+
+1. Every UAV starts on its shortest grid path.
+2. While two UAVs' paths conflict, the conflicting UAV with the highest priority
+   (eq. 7) searches a new path with the optimizer against the others' paths (eq. 8),
+   and the white hole is run again on the result.
+3. The non-UAV objects are placed; only the UAVs whose path one of them touches
+   replan (eq. 9), now with the objects blocked, and step 2 runs again if that
+   created a new conflict.
+4. The plan is judged by the exact continuous-time check: it is feasible only
+   if that check finds nothing.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.black_hole import Search, search_path
+from planner.clearance import ClearanceField
+from planner.grid_search import GridGraph, path_length
+from planner.objectives import ObjectiveName, PaperObjective, QosObjective, paper_fitness
+from planner.optimizers import get_algorithm
+from planner.path_cost import Traffic
+from planner.path_encoding import DetourEncoding, TurnEncoding, grid_steps
+from planner.plan import Metrics, Plan, PlannedUAV
+from planner.safety import cell_conflicts, check_plan
+from planner.scenario import Scenario, UAVSpec
+from planner.trajectory import Trajectory, merge_collinear
+from planner.white_hole import Exploration, explore
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    algorithm: str = "mvo"
+    objective: ObjectiveName = "qos"
+    seed: int = 1
+    population: int = 30
+    iterations: int = 1000
+
+
+@dataclass(frozen=True)
+class PlanProgress:
+    """What a progress callback sees after every optimizer iteration."""
+
+    run: int  # 1-based count of optimizer runs so far
+    uav: str
+    reason: str
+    iteration: int
+    iterations: int
+    plan_cost: float
+
+
+ProgressCallback = Callable[[PlanProgress], None]
+
+
+@dataclass
+class _Map:
+    blocked: NDArray[np.bool_]
+    graph: GridGraph
+    field: ClearanceField
+
+    @classmethod
+    def of(cls, blocked: NDArray[np.bool_]) -> _Map:
+        return cls(blocked, GridGraph.build(blocked), ClearanceField.build(blocked))
+
+
+@dataclass
+class _Planning:
+    """The fleet's paths while Algorithm 1 runs."""
+
+    scenario: Scenario
+    settings: PlannerSettings
+    progress: ProgressCallback | None
+    rng: np.random.Generator
+    specs: dict[str, UAVSpec]
+    paths: dict[str, Trajectory]
+    shortest: dict[str, float]
+    start_distance: dict[str, float]
+    objects: list[tuple[int, int]]
+    replans: dict[str, list[str]] = field(default_factory=dict)
+    history: list[float] = field(default_factory=list)
+    nfe: int = 0
+    runs: int = 0
+
+    @property
+    def radii(self) -> dict[str, float]:
+        return {u: s.radius for u, s in self.specs.items()}
+
+    def explore(self, world: _Map) -> Exploration:
+        return explore(self.paths, self.radii, self.shortest, self.objects, world.blocked.shape)
+
+    def objective(self, uav: str, penalty: float) -> QosObjective | PaperObjective:
+        if self.settings.objective == "qos":
+            return QosObjective(self.specs[uav].speed, penalty)
+        count = len(self.specs) + len(self.objects)
+        return PaperObjective(count, self.start_distance[uav], penalty)
+
+    def search(self, uav: str, world: _Map) -> Search:
+        spec = self.specs[uav]
+        others = [u for u in self.paths if u != uav]
+        traffic = Traffic.of(
+            [self.paths[u] for u in others], [self.specs[u].radius for u in others]
+        )
+        penalty = 100.0 * (world.blocked.shape[0] + world.blocked.shape[1] + 10)
+        return Search(
+            spec.speed,
+            spec.radius,
+            np.array(spec.goal, dtype=float),
+            traffic,
+            world.field,
+            self.objective(uav, penalty),
+        )
+
+    def current_cost(self, uav: str, world: _Map) -> float:
+        waypoints, waits = _as_waypoints(self.paths[uav])
+        return float(self.search(uav, world).cost(waypoints[None], waits[None])[0])
+
+    def replan(self, uav: str, world: _Map, reason: str) -> bool:
+        """One optimizer run for `uav`; keeps the new path if it costs less. True if kept."""
+        spec, search = self.specs[uav], self.search(uav, world)
+        if self.settings.objective == "qos":
+            cells = world.graph.shortest_path(spec.start, spec.goal)
+            if cells is None:
+                return False
+            horizon = max((t.end_time for u, t in self.paths.items() if u != uav), default=1.0)
+            encoding: DetourEncoding | TurnEncoding = DetourEncoding.around(
+                np.array(cells, dtype=float), max_wait=horizon + 1.0
+            )
+        else:
+            offset = self.paths[uav].end - np.array(spec.goal, dtype=float)
+            same_way = np.sign(offset) if np.any(offset) else None
+            encoding = TurnEncoding(grid_steps(merge_collinear(self.paths[uav].xy)), same_way)
+        before = self.current_cost(uav, world)
+        others = sum(self.current_cost(u, world) for u in self.paths if u != uav)
+        scale = 1.0 if self.settings.objective == "qos" else 1.0 / len(self.paths)
+        self.runs += 1
+        run = self.runs
+
+        def on_iteration(p) -> None:
+            cost = scale * (others + min(p.best_cost, before))
+            self.history.append(cost)
+            if self.progress is not None:
+                self.progress(PlanProgress(run, uav, reason, p.iteration, p.iterations, cost))
+
+        outcome = search_path(
+            encoding,
+            search,
+            algorithm=self.settings.algorithm,
+            population=self.settings.population,
+            iterations=self.settings.iterations,
+            rng=self.rng,
+            on_iteration=on_iteration,
+        )
+        self.nfe += outcome.result.nfe
+        if outcome.cost >= before:
+            return False
+        self.paths[uav] = outcome.trajectory
+        self.replans.setdefault(uav, []).append(reason)
+        return True
+
+    def resolve_conflicts(self, world: _Map) -> None:
+        """Step 2: the highest-priority UAV in conflict replans until none is left."""
+        stuck: set[str] = set()
+        for _ in range(4 * len(self.specs)):
+            exploration = self.explore(world)
+            uav = exploration.first_to_replan(exclude=stuck)
+            if uav is None:
+                return
+            kept = self.replan(uav, world, "uav conflict")
+            if not kept or self.explore(world).collision_paths[uav]:
+                stuck.add(uav)
+            else:
+                stuck.clear()
+
+    def wormhole(self, world: _Map) -> _Map:
+        """Step 3: the objects block their cells; only the UAVs they touch replan."""
+        if not self.objects:
+            return world
+        object_map = _with_objects(np.zeros_like(world.blocked), self.objects)
+        touched = [
+            u
+            for u in self.specs
+            if cell_conflicts(u, self.paths[u], self.specs[u].radius, object_map)
+        ]
+        if not touched:
+            return world
+        world = _Map.of(world.blocked | object_map)
+        priority = self.explore(world).priority
+        for uav in sorted(touched, key=lambda u: -priority[u]):
+            self.replan(uav, world, "non-UAV object")
+        self.resolve_conflicts(world)
+        return world
+
+
+def plan(
+    scenario: Scenario,
+    settings: PlannerSettings = PlannerSettings(),
+    progress: ProgressCallback | None = None,
+) -> Plan:
+    """Collision-free paths for every UAV of the scenario, or an infeasible plan that says why."""
+    get_algorithm(settings.algorithm)  # fail fast on an unknown name
+    started = time.perf_counter()
+    obstacles = _Map.of(scenario.blocked())
+    specs = {u.id: u for u in scenario.uavs}
+    objects = scenario.object_cells()
+    with_objects = GridGraph.build(_with_objects(obstacles.blocked, objects))
+    paths, shortest = {}, {}
+    for u in scenario.uavs:
+        cells = obstacles.graph.shortest_path(u.start, u.goal)
+        assert cells is not None, "the scenario's validation guarantees a path"
+        paths[u.id] = Trajectory.from_waypoints(merge_collinear(cells), u.speed)
+        # The reference a plan's length is judged by: alone on the grid, objects known.
+        shortest[u.id] = path_length(with_objects.shortest_path(u.start, u.goal) or cells)
+    rng = np.random.default_rng(settings.seed)
+    state = _Planning(scenario, settings, progress, rng, specs, paths, shortest, {}, objects)
+    first = state.explore(obstacles)
+    state.start_distance = _adjoining_start_distance(scenario, first.priority)
+
+    state.resolve_conflicts(obstacles)
+    state.wormhole(obstacles)
+    return _finish(state, obstacles, first, time.perf_counter() - started)
+
+
+def _with_objects(blocked: NDArray[np.bool_], objects: list[tuple[int, int]]) -> NDArray[np.bool_]:
+    out = blocked.copy()
+    for cell in objects:
+        out[cell] = True
+    return out
+
+
+def _adjoining_start_distance(scenario: Scenario, priority: dict[str, float]) -> dict[str, float]:
+    """Dist(t0) of Table III: start distance to the UAV of adjoining priority."""
+    order = sorted(scenario.uavs, key=lambda u: -priority[u.id])  # stable: ties keep order
+    if len(order) == 1:
+        return {order[0].id: 1.0}
+    out = {}
+    for k, u in enumerate(order):
+        other = order[k + 1] if k + 1 < len(order) else order[k - 1]
+        out[u.id] = float(np.hypot(u.start[0] - other.start[0], u.start[1] - other.start[1]))
+    return out
+
+
+def _as_waypoints(trajectory: Trajectory) -> tuple[Array, Array]:
+    """Waypoints and hover times of a trajectory (a hover is two points at one place)."""
+    points = trajectory.points
+    waypoints, waits = [points[0, 1:]], [0.0]
+    for prev, cur in itertools.pairwise(points):
+        if np.allclose(prev[1:], cur[1:]):
+            waits[-1] += cur[0] - prev[0]
+        else:
+            waypoints.append(cur[1:])
+            waits.append(0.0)
+    return np.array(waypoints), np.array(waits)
+
+
+def _finish(state: _Planning, world: _Map, first: Exploration, seconds: float) -> Plan:
+    report = check_plan(state.paths, state.radii, world.blocked, state.objects)
+    count = len(state.specs) + len(state.objects)
+    uavs, fitness = [], []
+    for uid, spec in state.specs.items():
+        trajectory = state.paths[uid]
+        deviation = float(np.hypot(*(trajectory.end - np.array(spec.goal))))
+        fitness.append(
+            float(paper_fitness(count, trajectory.length, deviation, state.start_distance[uid]))
+        )
+        uavs.append(
+            PlannedUAV(
+                id=uid,
+                trajectory=trajectory.to_json(),
+                length=round(trajectory.length, 6),
+                deviation=round(deviation, 6),
+                priority=round(first.priority[uid], 6),
+                moving_rate=round(first.moving_rate[uid], 6),
+                threat=round(first.threat[uid], 6),
+                shortest_length=round(state.shortest[uid], 6),
+                replanned=state.replans.get(uid, []),
+            )
+        )
+    closest = report.min_separation
+    metrics = Metrics(
+        conflicts=len(report.conflicts),
+        min_separation=None if not np.isfinite(closest) else round(closest, 6),
+        mean_deviation=round(float(np.mean([u.deviation for u in uavs])), 6),
+        total_length=round(sum(u.length for u in uavs), 6),
+        J=round(float(np.mean(fitness)), 6),
+        nfe=state.nfe,
+        seconds=round(seconds, 4),
+        replans=state.runs,
+    )
+    settings = state.settings
+    return Plan(
+        feasible=report.safe,
+        algorithm=get_algorithm(settings.algorithm).name,
+        objective=settings.objective,
+        seed=settings.seed,
+        population=settings.population,
+        iterations=settings.iterations,
+        scenario=state.scenario.name,
+        uavs=uavs,
+        non_uav_objects=[list(c) for c in state.objects],
+        metrics=metrics,
+        conflicts=[c.to_json() for c in report.conflicts],
+        history=[round(h, 6) for h in state.history],
+    )

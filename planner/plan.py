@@ -1,0 +1,51 @@
+"""The plan we return: per-UAV trajectories and the metrics that show it is safe."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class _Out(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class PlannedUAV(_Out):
+    id: str
+    trajectory: list[list[float]] = Field(description="[t, x, y] points, piecewise linear")
+    length: float = Field(description="cells flown")
+    deviation: float = Field(description="distance from the last point to the goal, cells")
+    priority: float = Field(description="ImP, eq. (7), when planning started")
+    moving_rate: float = Field(description="UMR, eq. (3): shortest distance to the goal, cells")
+    threat: float = Field(description="OTP, eq. (4)")
+    shortest_length: float = Field(description="8-connected shortest path, ignoring other UAVs")
+    replanned: list[str] = Field(default_factory=list, description="why it was replanned")
+
+
+class Metrics(_Out):
+    conflicts: int
+    min_separation: float | None = Field(description="closest centres of two UAVs; null: one UAV")
+    mean_deviation: float
+    total_length: float
+    J: float = Field(description="eq. (10), mean over UAVs, weights 1")
+    nfe: int
+    seconds: float
+    replans: int
+
+
+class Plan(_Out):
+    feasible: bool
+    algorithm: str
+    objective: str
+    seed: int
+    population: int
+    iterations: int
+    scenario: str
+    uavs: list[PlannedUAV]
+    non_uav_objects: list[list[int]]
+    metrics: Metrics
+    conflicts: list[dict[str, Any]] = Field(
+        default_factory=list, description="what keeps an infeasible plan from being safe"
+    )
+    history: list[float] = Field(description="plan cost after every optimizer iteration")

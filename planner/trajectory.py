@@ -1,0 +1,92 @@
+"""A UAV's flight: `[t, x, y]` points, piecewise linear in time, airborne until the last."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    points: NDArray[np.float64]  # (k, 3): t, x, y with t non-decreasing
+
+    @classmethod
+    def from_waypoints(
+        cls,
+        waypoints: ArrayLike,
+        speed: float,
+        waits: Sequence[float] | NDArray[np.float64] | None = None,
+        start_time: float = 0.0,
+    ) -> Trajectory:
+        """Fly through `waypoints` at `speed`, hovering `waits[k]` seconds at waypoint k."""
+        xy = np.asarray(waypoints, dtype=float).reshape(-1, 2)
+        hold = np.zeros(len(xy)) if waits is None else np.asarray(waits, dtype=float)
+        legs = np.hypot(*np.diff(xy, axis=0).T) / speed
+        rows = []
+        t = start_time
+        for k, (x, y) in enumerate(xy):
+            if k:
+                t += legs[k - 1]
+            rows.append((t, x, y))
+            if hold[k] > 0:
+                t += hold[k]
+                rows.append((t, x, y))
+        return cls(np.array(rows))
+
+    @property
+    def times(self) -> NDArray[np.float64]:
+        return self.points[:, 0]
+
+    @property
+    def xy(self) -> NDArray[np.float64]:
+        return self.points[:, 1:]
+
+    @property
+    def end_time(self) -> float:
+        return float(self.points[-1, 0])
+
+    @property
+    def end(self) -> NDArray[np.float64]:
+        return self.points[-1, 1:]
+
+    @property
+    def length(self) -> float:
+        return float(np.hypot(*np.diff(self.xy, axis=0).T).sum())
+
+    def max_speed(self) -> float:
+        dt = np.diff(self.times)
+        dist = np.hypot(*np.diff(self.xy, axis=0).T)
+        moving = dist > 1e-12
+        if not moving.any():
+            return 0.0
+        with np.errstate(divide="ignore"):
+            return float(np.max(dist[moving] / dt[moving]))
+
+    def at(self, times: ArrayLike) -> NDArray[np.float64]:
+        """Positions at `times`, shape (n, 2); NaN before take-off at 0 or after landing."""
+        t = np.asarray(times, dtype=float)
+        out = np.column_stack(
+            [np.interp(t, self.times, self.xy[:, 0]), np.interp(t, self.times, self.xy[:, 1])]
+        )
+        out[(t < self.times[0]) | (t > self.end_time)] = np.nan
+        return out
+
+    def to_json(self) -> list[list[float]]:
+        return [
+            [round(float(t), 6), round(float(x), 6), round(float(y), 6)] for t, x, y in self.points
+        ]
+
+
+def merge_collinear(cells: ArrayLike) -> NDArray[np.float64]:
+    """Keep only the turning points of a polyline (first and last included)."""
+    xy = np.asarray(cells, dtype=float).reshape(-1, 2)
+    if len(xy) <= 2:
+        return xy
+    d1, d2 = xy[1:-1] - xy[:-2], xy[2:] - xy[1:-1]
+    cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    same_way = np.einsum("ij,ij->i", d1, d2) > 0
+    keep = np.concatenate([[True], ~((np.abs(cross) < 1e-9) & same_way), [True]])
+    return xy[keep]

@@ -1,0 +1,78 @@
+"""Exploration (the white hole): who would collide with whom, when, and who replans first.
+
+For the UAVs' current paths this finds the common path sets CPS(i, j) (the places
+and times where two paths come closer than the sum of the radii, judged exactly in
+continuous time), each UAV's collision paths PC_i, and the paper's metrics:
+
+- UMR_i, eq. (3): the shortest distance from the UAV's position to its destination
+  over its possible paths, in cells;
+- OTP_i, eq. (4): UCP x WEP, the share of the other UAVs whose paths cross this one
+  times the share of the non-UAV objects that lie on it;
+- ImP_i, eq. (7): #PC_i / (t_c^i x T_i), more collision paths and an earlier
+  collision first, where t_c^i is the time to the first collision and T_i the flight
+  time. The UAV with the highest ImP replans first.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from planner.safety import Conflict, cell_conflicts, uav_conflicts
+from planner.trajectory import Trajectory
+
+Cell = tuple[int, int]
+EARLIEST = 1e-3  # seconds; a collision at take-off still gets a finite priority
+
+
+@dataclass(frozen=True)
+class Exploration:
+    conflicts: list[Conflict]  # the CPS(i, j) of every pair, one entry per pair
+    collision_paths: dict[str, list[Conflict]]  # PC_i
+    priority: dict[str, float]  # ImP_i, eq. (7)
+    moving_rate: dict[str, float]  # UMR_i, eq. (3)
+    threat: dict[str, float]  # OTP_i, eq. (4)
+    min_separation: float
+
+    def first_to_replan(self, exclude: Iterable[str] = ()) -> str | None:
+        """The UAV in conflict with the highest ImP; ties go to the earlier UAV, as in the
+        paper's cases (UAV1 turns when the priorities are equal)."""
+        skip = set(exclude)
+        candidates = [u for u, pc in self.collision_paths.items() if pc and u not in skip]
+        return max(candidates, key=lambda u: self.priority[u], default=None)
+
+
+def explore(
+    trajectories: Mapping[str, Trajectory],
+    radii: Mapping[str, float],
+    shortest: Mapping[str, float],
+    objects: Iterable[Cell],
+    grid_shape: tuple[int, int],
+) -> Exploration:
+    conflicts, closest = uav_conflicts(trajectories, radii)
+    collision_paths = {u: [c for c in conflicts if u in c.uavs] for u in trajectories}
+    object_map = _object_map(objects, grid_shape)
+    objects_total = int(object_map.sum())
+    others = max(len(trajectories) - 1, 1)
+    priority, threat = {}, {}
+    for uav, trajectory in trajectories.items():
+        pc = collision_paths[uav]
+        if pc:
+            first = max(min(c.time for c in pc), EARLIEST)
+            priority[uav] = len(pc) / (first * max(trajectory.end_time, EARLIEST))
+        else:
+            priority[uav] = 0.0
+        on_path = len(cell_conflicts(uav, trajectory, radii[uav], object_map, "non_uav_object"))
+        wep = on_path / objects_total if objects_total else 0.0
+        threat[uav] = len(pc) / others * wep
+    return Exploration(conflicts, collision_paths, priority, dict(shortest), threat, closest)
+
+
+def _object_map(objects: Iterable[Cell], shape: tuple[int, int]) -> NDArray[np.bool_]:
+    grid = np.zeros(shape, dtype=bool)
+    for cell in objects:
+        grid[cell] = True
+    return grid

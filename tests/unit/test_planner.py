@@ -1,0 +1,143 @@
+"""Algorithm 1 end to end, on the paper's cases and on generated scenarios."""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from planner.cases import CASES, PAPER_TABLE_III, load_case
+from planner.pipeline import PlannerSettings, plan
+from planner.plan import Plan
+from planner.scenario import load_scenario
+from planner.trajectory import Trajectory
+
+FAST = {"population": 20, "iterations": 150}
+
+
+def independent_check(result: Plan, radii: dict[str, float], blocked: set) -> list[str]:
+    """A dense-sampling judge that shares no code with planner.safety."""
+    tracks = {u.id: Trajectory(np.array(u.trajectory)) for u in result.uavs}
+    end = max(t.end_time for t in tracks.values())
+    t = np.linspace(0.0, end, int(end / 0.005) + 2)
+    where = {u: tr.at(t) for u, tr in tracks.items()}
+    problems = []
+    ids = list(tracks)
+    for i, a in enumerate(ids):
+        for b in ids[i + 1 :]:
+            d = np.hypot(*(where[a] - where[b]).T)
+            if np.nanmin(d, initial=np.inf) < radii[a] + radii[b] - 1e-6:
+                problems.append(f"{a}-{b}")
+        p = where[a][~np.isnan(where[a][:, 0])]
+        for cx, cy in blocked:
+            off = np.maximum(np.abs(p - (cx, cy)) - 0.5, 0)
+            if np.hypot(*off.T).min() < radii[a] - 1e-6:
+                problems.append(f"{a}@{(cx, cy)}")
+    return problems
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_paper_objective_reproduces_table_iii_deviations(case: str) -> None:
+    result = plan(load_case(case), PlannerSettings(objective="paper", **FAST))
+    assert result.feasible
+    assert result.metrics.mean_deviation == pytest.approx(
+        PAPER_TABLE_III[case]["deviation"], abs=0.005
+    )
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_qos_objective_reaches_every_goal_safely_and_short(case: str) -> None:
+    scenario = load_case(case)
+    result = plan(scenario, PlannerSettings(objective="qos", **FAST))
+    assert result.feasible and result.metrics.conflicts == 0
+    assert all(u.deviation == 0 for u in result.uavs)
+    shortest = sum(u.shortest_length for u in result.uavs)
+    assert result.metrics.total_length <= 1.10 * shortest
+    radii = {u.id: u.radius for u in scenario.uavs}
+    blocked = set(scenario.obstacles) | set(map(tuple, result.non_uav_objects))
+    assert independent_check(result, radii, blocked) == []
+
+
+def test_speed_is_never_exceeded_and_trajectories_start_at_t0() -> None:
+    scenario = load_case("case-5")
+    result = plan(scenario, PlannerSettings(**FAST))
+    for u, spec in zip(result.uavs, scenario.uavs, strict=True):
+        tr = Trajectory(np.array(u.trajectory))
+        assert tr.points[0].tolist() == [0.0, *spec.start]
+        assert tr.max_speed() <= spec.speed * (1 + 1e-6)
+        assert np.all(np.diff(tr.times) >= 0)
+
+
+def test_same_seed_same_plan() -> None:
+    a = plan(load_case("case-6"), PlannerSettings(seed=5, **FAST))
+    b = plan(load_case("case-6"), PlannerSettings(seed=5, **FAST))
+    assert a.model_dump(exclude={"metrics": {"seconds"}}) == b.model_dump(
+        exclude={"metrics": {"seconds"}}
+    )
+
+
+def test_wormhole_replans_only_the_uavs_an_object_touches() -> None:
+    base = {
+        "grid": {"width": 10, "height": 10},
+        "uavs": [
+            {"id": "near", "start": [0, 2], "goal": [9, 2]},
+            {"id": "far", "start": [0, 8], "goal": [9, 8]},
+        ],
+    }
+    without = plan(load_scenario(base), PlannerSettings(**FAST))
+    with_object = plan(
+        load_scenario({**base, "non_uav_objects": [[5, 2]]}), PlannerSettings(**FAST)
+    )
+    near, far = with_object.uavs
+    assert near.replanned == ["non-UAV object"] and far.replanned == []
+    assert far.trajectory == without.uavs[1].trajectory
+    assert with_object.feasible
+
+
+def test_unsolvable_scenario_is_refused_with_the_conflict() -> None:
+    corridor = load_scenario(
+        {
+            "name": "corridor",
+            "grid": {"width": 5, "height": 1},
+            "uavs": [
+                {"id": "east", "start": [0, 0], "goal": [4, 0]},
+                {"id": "west", "start": [4, 0], "goal": [0, 0]},
+            ],
+        }
+    )
+    result = plan(corridor, PlannerSettings(**FAST))
+    assert not result.feasible and result.metrics.conflicts >= 1
+    conflict = result.conflicts[0]
+    assert conflict["kind"] == "uav" and set(conflict["uavs"]) == {"east", "west"}
+    assert "come" in conflict["message"] and "at t =" in conflict["message"]
+
+
+@st.composite
+def small_scenarios(draw) -> dict:
+    size = draw(st.integers(5, 8))
+    cells = draw(
+        st.lists(
+            st.tuples(st.integers(0, size - 1), st.integers(0, size - 1)),
+            min_size=6,
+            max_size=6,
+            unique=True,
+        )
+    )
+    return {
+        "grid": {"width": size, "height": size},
+        "uavs": [
+            {"id": f"u{k}", "start": list(cells[2 * k]), "goal": list(cells[2 * k + 1])}
+            for k in range(3)
+        ],
+    }
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=small_scenarios(), seed=st.integers(0, 1000))
+def test_any_feasible_plan_passes_an_independent_check(data: dict, seed: int) -> None:
+    scenario = load_scenario(data)
+    result = plan(scenario, PlannerSettings(seed=seed, population=15, iterations=60))
+    problems = independent_check(result, {u.id: u.radius for u in scenario.uavs}, set())
+    if result.feasible:
+        assert problems == []
+    else:
+        assert result.conflicts, "an infeasible plan must say why"
