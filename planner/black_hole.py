@@ -85,16 +85,25 @@ def search_path(
     )
     waypoints, waits = encoding.decode(result.best_x[None])
     if isinstance(encoding, DetourEncoding):
-        unchanged = encoding.decode(encoding.unchanged()[None])
-        if search.cost(*unchanged)[0] <= search.cost(waypoints, waits)[0]:
-            waypoints, waits = unchanged
         waypoints, waits = polish(waypoints, waits, search)
+        unchanged = encoding.decode(encoding.unchanged()[None])
+        waypoints, waits = _safest(search, (waypoints, waits), unchanged)
     if not waits.any():
         waypoints = merge_collinear(waypoints[0])[None]
         waits = np.zeros((1, waypoints.shape[1]))
     terms = search.terms(waypoints, waits)
     trajectory = Trajectory.from_waypoints(waypoints[0], search.speed, waits[0])
     return Outcome(trajectory, float(search.objective.cost(terms)[0]), bool(terms.safe[0]), result)
+
+
+def _safest(search: Search, *candidates: tuple[Array, Array]) -> tuple[Array, Array]:
+    """The cheapest candidate that keeps clear of blocked cells, else the cheapest."""
+
+    def rank(candidate: tuple[Array, Array]) -> tuple[bool, float]:
+        terms = search.terms(*candidate)
+        return bool(terms.clearance_hits[0] > 0), float(search.objective.cost(terms)[0])
+
+    return min(candidates, key=rank)
 
 
 def polish(waypoints: Array, waits: Array, search: Search) -> tuple[Array, Array]:

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from planner.path_cost import PathTerms
 
 ObjectiveName = Literal["qos", "paper"]
-HOVER_PRICE = 0.1  # cells of length one second of hovering costs, per cell/s of speed
+HOVER_PRICE = 0.5  # cells of length one second of hovering costs, per cell/s of speed
 
 
 class PathObjective(Protocol):
@@ -30,9 +30,13 @@ class PathObjective(Protocol):
 
 
 def unsafe_penalty(terms: PathTerms, scale: float) -> NDArray[np.float64]:
-    """`scale` for any hit, plus the depth of the hits so the search can tell better from worse."""
-    hits = (terms.separation_hits + terms.clearance_hits) > 0
-    return scale * (hits + terms.separation_deficit + terms.clearance_deficit)
+    """`scale` for coming too close to a UAV, twice that for entering a blocked cell (the
+    other UAVs can still move out of the way, a blocked cell cannot), plus the depth of
+    the hits so that the search can tell a better unsafe path from a worse one."""
+    uav_hit = terms.separation_hits > 0
+    cell_hit = terms.clearance_hits > 0
+    depth = terms.separation_deficit + terms.clearance_deficit
+    return scale * (uav_hit + 2.0 * cell_hit + depth)
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ final plan is still judged by the exact check in `planner.safety`.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,9 +86,9 @@ def batched_interp(queries: Array, knots: Array, values: Array) -> Array:
     right = base + np.clip(idx - base, 1, k - 1)
     flat_t, flat_v = knots.ravel(), values.reshape(rows * k, -1)
     t0, t1 = flat_t[right - 1], flat_t[right]
-    q = queries.ravel()
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.clip(np.where(t1 > t0, (q - t0) / (t1 - t0), 1.0), 0.0, 1.0)
+    span_t = t1 - t0
+    frac = np.divide(queries.ravel() - t0, span_t, out=np.ones_like(span_t), where=span_t > 0)
+    np.clip(frac, 0.0, 1.0, out=frac)
     v0 = flat_v[right - 1]
     out = v0 + frac[:, None] * (flat_v[right] - v0)
     return out.reshape(*queries.shape, -1)
@@ -122,13 +123,19 @@ def separation_terms(
     gap = mine - theirs
     start, change = gap[:, :, :-1], np.diff(gap, axis=2)
     speed2 = np.einsum("...i,...i->...", change, change)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tau = np.where(speed2 > 0, -np.einsum("...i,...i->...", start, change) / speed2, 0.0)
-    closest = np.hypot(*np.moveaxis(start + np.clip(tau, 0, 1)[..., None] * change, -1, 0))
+    towards = -np.einsum("...i,...i->...", start, change)
+    tau = np.divide(towards, speed2, out=np.zeros_like(speed2), where=speed2 > 0)
+    nearest = start + np.clip(tau, 0, 1)[..., None] * change
+    closest = np.sqrt(np.einsum("...i,...i->...", nearest, nearest))
     need = radius + traffic.radii[None, :, None]
     deficit = np.maximum(need - closest, 0.0)
     duration = np.diff(merged, axis=2)
     return (deficit * np.maximum(duration, 1e-3)).sum(axis=(1, 2)), (deficit > 0).sum(axis=(1, 2))
+
+
+@functools.cache
+def _fractions(q: int) -> Array:
+    return np.linspace(0.0, 1.0, q)
 
 
 def clearance_terms(
@@ -138,7 +145,7 @@ def clearance_terms(
     legs = np.diff(waypoints, axis=1)  # (N, P-1, 2)
     longest = float(np.hypot(legs[..., 0], legs[..., 1]).max(initial=0.0))
     q = max(2, int(np.ceil(longest / SPACING)) + 1)
-    frac = np.linspace(0.0, 1.0, q)
+    frac = _fractions(q)
     points = waypoints[:, :-1, None, :] + frac[None, None, :, None] * legs[:, :, None, :]
     deficit = np.maximum(radius + margin - field.at(points), 0.0)  # (N, P-1, q)
     step = np.hypot(legs[..., 0], legs[..., 1])[..., None] / (q - 1)

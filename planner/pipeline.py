@@ -160,25 +160,39 @@ class _Planning:
             on_iteration=on_iteration,
         )
         self.nfe += outcome.result.nfe
-        if outcome.cost >= before:
+        if outcome.cost >= before or cell_conflicts(
+            uav, outcome.trajectory, spec.radius, world.blocked
+        ):  # the search reads clearance from a raster; the exact check has the last word
             return False
         self.paths[uav] = outcome.trajectory
         self.replans.setdefault(uav, []).append(reason)
         return True
 
-    def resolve_conflicts(self, world: _Map) -> None:
-        """Step 2: the highest-priority UAV in conflict replans until none is left."""
+    def troubled(self, world: _Map) -> list[str]:
+        """UAVs in conflict with another UAV or inside a blocked cell, highest priority first."""
+        exploration = self.explore(world)
+        hit = {
+            u
+            for u in self.specs
+            if cell_conflicts(u, self.paths[u], self.specs[u].radius, world.blocked)
+        }
+        trouble = [u for u in self.specs if exploration.collision_paths[u] or u in hit]
+        # Ties keep the scenario's order: the paper's UAV1 turns when priorities are equal.
+        return sorted(trouble, key=lambda u: -exploration.priority[u])
+
+    def resolve_conflicts(self, world: _Map, reason: str = "uav conflict") -> None:
+        """Step 2: the highest-priority UAV in trouble replans until none is left, or until
+        every UAV in trouble has tried and failed since the last success."""
         stuck: set[str] = set()
         for _ in range(4 * len(self.specs)):
-            exploration = self.explore(world)
-            uav = exploration.first_to_replan(exclude=stuck)
-            if uav is None:
+            candidates = [u for u in self.troubled(world) if u not in stuck]
+            if not candidates:
                 return
-            kept = self.replan(uav, world, "uav conflict")
-            if not kept or self.explore(world).collision_paths[uav]:
-                stuck.add(uav)
-            else:
+            uav = candidates[0]
+            if self.replan(uav, world, reason) and uav not in self.troubled(world):
                 stuck.clear()
+            else:
+                stuck.add(uav)
 
     def wormhole(self, world: _Map) -> _Map:
         """Step 3: the objects block their cells; only the UAVs they touch replan."""

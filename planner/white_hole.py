@@ -37,13 +37,6 @@ class Exploration:
     threat: dict[str, float]  # OTP_i, eq. (4)
     min_separation: float
 
-    def first_to_replan(self, exclude: Iterable[str] = ()) -> str | None:
-        """The UAV in conflict with the highest ImP; ties go to the earlier UAV, as in the
-        paper's cases (UAV1 turns when the priorities are equal)."""
-        skip = set(exclude)
-        candidates = [u for u, pc in self.collision_paths.items() if pc and u not in skip]
-        return max(candidates, key=lambda u: self.priority[u], default=None)
-
 
 def explore(
     trajectories: Mapping[str, Trajectory],
