@@ -1,10 +1,10 @@
 """Cost terms of many candidate paths for one UAV at once: the planner's hot path.
 
 A candidate is a polyline of waypoints with a hover time at each. Every term is
-computed for the whole population in numpy: separation from the other UAVs is
-exact (closest approach on every interval where both move linearly), clearance
-from blocked cells is read from a fine distance raster with a margin, and the
-final plan is still judged by the exact check in `planner.safety`.
+computed for the whole population in numpy: separation from the other UAVs at
+sampled encounters with a margin that covers the motion between samples, clearance
+from blocked cells from a fine distance raster, also with a margin. Both err on the
+safe side, and every plan is still judged by the exact check in `planner.safety`.
 """
 
 from __future__ import annotations
@@ -24,27 +24,48 @@ SPACING = 0.1  # cells between clearance samples along a path
 
 @dataclass(frozen=True)
 class Traffic:
-    """The other UAVs, fixed: breakpoints padded to a common length so they stack."""
+    """The other UAVs, fixed while one UAV searches, as a short list of encounters.
 
-    times: Array  # (U, B), non-decreasing per row
-    positions: Array  # (U, B, 2)
-    radii: Array  # (U,)
+    They are sampled every `step` seconds, and only the samples inside the region the
+    searching UAV can reach are kept: (time, place, distance needed). Between two
+    samples two UAVs close in by at most (v_i + v_j) x step, so every encounter asks
+    for half of that on top of the radii: a path that clears every sample clears the
+    exact continuous check as well, and a path that fails it is always caught.
+    """
+
+    times: Array  # (S,) the sample times the encounters use
+    slot: NDArray[np.intp]  # (Q,) index of each encounter's time in `times`
+    where: Array  # (Q, 2) the other UAV's position
+    need: Array  # (Q,) centre distance needed, margin included
+    step: float
 
     @classmethod
-    def of(cls, trajectories: list[Trajectory], radii: list[float]) -> Traffic:
-        if not trajectories:
-            return cls(np.zeros((0, 1)), np.zeros((0, 1, 2)), np.zeros(0))
-        width = max(len(t.points) for t in trajectories)
-        padded = [
-            np.vstack([t.points, np.repeat(t.points[-1:], width - len(t.points), 0)])
-            for t in trajectories
-        ]
-        stack = np.stack(padded)
-        return cls(stack[:, :, 0], stack[:, :, 1:], np.asarray(radii, dtype=float))
-
-    @property
-    def end_times(self) -> Array:
-        return self.times[:, -1]
+    def around(
+        cls,
+        others: list[tuple[Trajectory, float, float]],
+        *,
+        radius: float,
+        speed: float,
+        lower: Array,
+        upper: Array,
+    ) -> Traffic:
+        """`others` are (trajectory, radius, speed); [lower, upper] bounds the searcher."""
+        step = 0.1 / max([speed] + [v for _, _, v in others])
+        horizon = max((t.end_time for t, _, _ in others), default=0.0)
+        grid = np.arange(0.0, horizon + step, step)
+        slots, places, needs = [], [], []
+        for trajectory, r, v in others:
+            need = radius + r + (speed + v) * step / 2
+            at = trajectory.at(grid)  # NaN once landed
+            near = np.all((at >= lower - need) & (at <= upper + need), axis=1)
+            slots.append(np.flatnonzero(near))
+            places.append(at[near])
+            needs.append(np.full(near.sum(), need))
+        slot = np.concatenate(slots) if slots else np.zeros(0, dtype=np.intp)
+        used, slot = np.unique(slot, return_inverse=True)
+        where = np.concatenate(places) if places else np.zeros((0, 2))
+        need = np.concatenate(needs) if needs else np.zeros(0)
+        return cls(grid[used], slot.astype(np.intp), where, need, step)
 
 
 @dataclass(frozen=True)
@@ -55,8 +76,8 @@ class PathTerms:
     waiting: Array
     end_time: Array
     deviation: Array  # distance of the last waypoint from the goal
-    separation_deficit: Array  # Σ over intervals of (needed - closest) x duration, UAVs
-    separation_hits: Array  # intervals where two UAVs come too close
+    separation_deficit: Array  # Σ over encounters of (needed - distance) x step, UAVs
+    separation_hits: Array  # encounters where two UAVs come too close
     clearance_deficit: Array  # Σ over samples of (needed - clearance) x spacing, obstacles
     clearance_hits: Array  # samples inside an obstacle's reach
 
@@ -94,43 +115,22 @@ def batched_interp(queries: Array, knots: Array, values: Array) -> Array:
     return out.reshape(*queries.shape, -1)
 
 
-def separation_terms(
-    times: Array, positions: Array, radius: float, traffic: Traffic
-) -> tuple[Array, Array]:
-    """Exact closest approach of every candidate to every other UAV, interval by interval."""
-    n, u = times.shape[0], traffic.radii.size
-    if u == 0:
+def separation_terms(times: Array, positions: Array, traffic: Traffic) -> tuple[Array, Array]:
+    """Shortfall of every candidate's distance to the other UAVs at their encounters."""
+    n = times.shape[0]
+    if traffic.slot.size == 0:
         return np.zeros(n), np.zeros(n)
-    # Union of both timelines per (candidate, other), cut where either has landed.
-    merged = np.concatenate(
-        [
-            np.broadcast_to(times[:, None, :], (n, u, times.shape[1])),
-            np.broadcast_to(traffic.times[None], (n, u, traffic.times.shape[1])),
-        ],
-        axis=2,
-    )
-    end = np.minimum(times[:, -1:, None], traffic.end_times[None, :, None])  # (N, U, 1)
-    merged = np.sort(np.minimum(merged, end), axis=2)
-    m = merged.shape[2]
-    mine = batched_interp(merged.reshape(n, u * m), times, positions).reshape(n, u, m, 2)
-    theirs = (
-        batched_interp(
-            merged.transpose(1, 0, 2).reshape(u, n * m), traffic.times, traffic.positions
-        )
-        .reshape(u, n, m, 2)
-        .transpose(1, 0, 2, 3)
-    )
-    gap = mine - theirs
-    start, change = gap[:, :, :-1], np.diff(gap, axis=2)
-    speed2 = np.einsum("...i,...i->...", change, change)
-    towards = -np.einsum("...i,...i->...", start, change)
-    tau = np.divide(towards, speed2, out=np.zeros_like(speed2), where=speed2 > 0)
-    nearest = start + np.clip(tau, 0, 1)[..., None] * change
-    closest = np.sqrt(np.einsum("...i,...i->...", nearest, nearest))
-    need = radius + traffic.radii[None, :, None]
-    deficit = np.maximum(need - closest, 0.0)
-    duration = np.diff(merged, axis=2)
-    return (deficit * np.maximum(duration, 1e-3)).sum(axis=(1, 2)), (deficit > 0).sum(axis=(1, 2))
+    at = batched_interp(np.broadcast_to(traffic.times, (n, traffic.times.size)), times, positions)
+    gx = np.take(at[..., 0], traffic.slot, axis=1) - traffic.where[:, 0]  # (N, Q)
+    gy = np.take(at[..., 1], traffic.slot, axis=1) - traffic.where[:, 1]
+    squared = gx * gx + gy * gy
+    close = squared < traffic.need * traffic.need
+    # Until landing, and half a step past it so the sample nearest to any moment counts.
+    close &= traffic.times[traffic.slot][None, :] <= times[:, -1:] + traffic.step / 2
+    if not close.any():
+        return np.zeros(n), np.zeros(n)
+    deficit = np.where(close, traffic.need - np.sqrt(squared), 0.0)
+    return deficit.sum(axis=1) * traffic.step, close.sum(axis=1)
 
 
 @functools.cache
@@ -141,15 +141,29 @@ def _fractions(q: int) -> Array:
 def clearance_terms(
     waypoints: Array, radius: float, field: ClearanceField, margin: float
 ) -> tuple[Array, Array]:
-    """Sampled clearance along every leg against blocked cells (and the grid's edge)."""
+    """Sampled clearance along the legs against blocked cells (and the grid's edge).
+
+    A leg whose ends are both clear by more than half its length plus the radius is
+    clear all along (no point of it is further than half its length from an end), so
+    only the other legs are sampled.
+    """
+    n = waypoints.shape[0]
+    ends = field.at(waypoints)  # (N, P)
     legs = np.diff(waypoints, axis=1)  # (N, P-1, 2)
-    longest = float(np.hypot(legs[..., 0], legs[..., 1]).max(initial=0.0))
-    q = max(2, int(np.ceil(longest / SPACING)) + 1)
+    length = np.sqrt(np.einsum("...i,...i->...", legs, legs))
+    doubtful = np.minimum(ends[:, :-1], ends[:, 1:]) - length / 2 < radius + margin
+    if not doubtful.any():
+        return np.zeros(n), np.zeros(n, dtype=np.intp)
+    rows, cols = np.nonzero(doubtful)
+    q = max(2, int(np.ceil(length[rows, cols].max() / SPACING)) + 1)
     frac = _fractions(q)
-    points = waypoints[:, :-1, None, :] + frac[None, None, :, None] * legs[:, :, None, :]
-    deficit = np.maximum(radius + margin - field.at(points), 0.0)  # (N, P-1, q)
-    step = np.hypot(legs[..., 0], legs[..., 1])[..., None] / (q - 1)
-    return (deficit * np.maximum(step, SPACING)).sum(axis=(1, 2)), (deficit > 0).sum(axis=(1, 2))
+    starts = waypoints[rows, cols]  # (M, 2)
+    points = starts[:, None, :] + frac[None, :, None] * legs[rows, cols][:, None, :]
+    deficit = np.maximum(radius + margin - field.at(points), 0.0)  # (M, q)
+    step = np.maximum(length[rows, cols] / (q - 1), SPACING)
+    depth = np.bincount(rows, weights=(deficit * step[:, None]).sum(axis=1), minlength=n)
+    hits = np.bincount(rows, weights=(deficit > 0).sum(axis=1), minlength=n)
+    return depth, hits.astype(np.intp)
 
 
 def evaluate_paths(
@@ -165,7 +179,7 @@ def evaluate_paths(
     """All cost terms of N candidate paths: waypoints (N, P, 2), hover times (N, P)."""
     times, positions = timeline(waypoints, waits, speed)
     steps = np.diff(waypoints, axis=1)
-    separation, separation_hits = separation_terms(times, positions, radius, traffic)
+    separation, separation_hits = separation_terms(times, positions, traffic)
     clearance, clearance_hits = clearance_terms(waypoints, radius, field, 1.0 / field.scale)
     return PathTerms(
         length=np.hypot(steps[..., 0], steps[..., 1]).sum(axis=1),

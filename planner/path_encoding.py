@@ -55,6 +55,12 @@ class DetourEncoding:
     def bounds(self) -> tuple[Array, Array]:
         return -np.ones(self.dim), np.ones(self.dim)
 
+    def region(self) -> tuple[Array, Array]:
+        """A box that holds every path this encoding can produce."""
+        points = np.vstack([self.start, self.goal, self.base])
+        reach = self.max_offset if len(self.base) else 0.0
+        return points.min(axis=0) - reach, points.max(axis=0) + reach
+
     def unchanged(self) -> Array:
         """Genes that decode to the base path with no hovering."""
         genes = np.zeros(self.dim)
@@ -93,6 +99,9 @@ class TurnEncoding:
 
     def bounds(self) -> tuple[Array, Array]:
         return np.array([0.0, -1.0]), np.array([1.0, 1.0])
+
+    def region(self) -> tuple[Array, Array]:
+        return self.cells.min(axis=0) - 1.0, self.cells.max(axis=0) + 1.0
 
     def decode(self, genes: Array) -> tuple[Array, Array]:
         """Gene 0 picks the step where the UAV turns, gene 1's sign the side."""

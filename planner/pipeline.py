@@ -103,11 +103,16 @@ class _Planning:
         count = len(self.specs) + len(self.objects)
         return PaperObjective(count, self.start_distance[uav], penalty)
 
-    def search(self, uav: str, world: _Map) -> Search:
+    def search(self, uav: str, world: _Map, region: tuple[Array, Array]) -> Search:
+        """Costs for `uav`'s paths inside `region` against everything else, held fixed."""
         spec = self.specs[uav]
-        others = [u for u in self.paths if u != uav]
-        traffic = Traffic.of(
-            [self.paths[u] for u in others], [self.specs[u].radius for u in others]
+        others = [
+            (self.paths[u], self.specs[u].radius, self.specs[u].speed)
+            for u in self.paths
+            if u != uav
+        ]
+        traffic = Traffic.around(
+            others, radius=spec.radius, speed=spec.speed, lower=region[0], upper=region[1]
         )
         penalty = 100.0 * (world.blocked.shape[0] + world.blocked.shape[1] + 10)
         return Search(
@@ -121,11 +126,12 @@ class _Planning:
 
     def current_cost(self, uav: str, world: _Map) -> float:
         waypoints, waits = _as_waypoints(self.paths[uav])
-        return float(self.search(uav, world).cost(waypoints[None], waits[None])[0])
+        region = (waypoints.min(axis=0), waypoints.max(axis=0))
+        return float(self.search(uav, world, region).cost(waypoints[None], waits[None])[0])
 
     def replan(self, uav: str, world: _Map, reason: str) -> bool:
         """One optimizer run for `uav`; keeps the new path if it costs less. True if kept."""
-        spec, search = self.specs[uav], self.search(uav, world)
+        spec = self.specs[uav]
         if self.settings.objective == "qos":
             cells = world.graph.shortest_path(spec.start, spec.goal)
             if cells is None:
@@ -138,6 +144,7 @@ class _Planning:
             offset = self.paths[uav].end - np.array(spec.goal, dtype=float)
             same_way = np.sign(offset) if np.any(offset) else None
             encoding = TurnEncoding(grid_steps(merge_collinear(self.paths[uav].xy)), same_way)
+        search = self.search(uav, world, encoding.region())
         before = self.current_cost(uav, world)
         others = sum(self.current_cost(u, world) for u in self.paths if u != uav)
         scale = 1.0 if self.settings.objective == "qos" else 1.0 / len(self.paths)

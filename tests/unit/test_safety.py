@@ -61,17 +61,31 @@ def test_exact_closest_approach_never_above_dense_sampling(a, b) -> None:
     assert 0 <= when <= end + 1e-9
 
 
-@settings(max_examples=100, deadline=None)
+def traffic(others: list[Trajectory], lower=(-1.0, -1.0), upper=(7.0, 7.0)) -> Traffic:
+    return Traffic.around(
+        [(o, 0.3, 1.0) for o in others],
+        radius=0.3,
+        speed=1.0,
+        lower=np.array(lower),
+        upper=np.array(upper),
+    )
+
+
+@settings(max_examples=150, deadline=None)
 @given(
     mine=st.lists(st.tuples(st.floats(0, 6), st.floats(0, 6)), min_size=2, max_size=5),
     hold=st.lists(st.floats(0, 3), min_size=5, max_size=5),
     others=st.lists(trajectory, min_size=1, max_size=3),
 )
-def test_planner_cost_agrees_with_the_safety_check(mine, hold, others) -> None:
+def test_planner_cost_errs_on_the_safe_side_only(mine, hold, others) -> None:
+    """Every real conflict is caught; a false alarm needs a near miss within the margin."""
     waypoints = np.array(mine)[None]
     waits = np.array(hold[: len(mine)])[None]
     times, positions = timeline(waypoints, waits, 1.0)
-    _, hits = separation_terms(times, positions, 0.3, Traffic.of(others, [0.3] * len(others)))
+    _, hits = separation_terms(times, positions, traffic(others))
     me = Trajectory(np.column_stack([times[0], positions[0]]))
     exact = min(closest_approach(me, o)[0] for o in others)
-    assert (hits[0] > 0) == (exact < 0.6)
+    if exact < 0.6:
+        assert hits[0] > 0
+    if exact >= 0.8:  # radii 0.6 + margin 0.1 + half a step of the other's motion, 0.05
+        assert hits[0] == 0
