@@ -46,10 +46,12 @@ class Traffic:
         *,
         radius: float,
         speed: float,
+        start: Array,
         lower: Array,
         upper: Array,
     ) -> Traffic:
-        """`others` are (trajectory, radius, speed); [lower, upper] bounds the searcher."""
+        """`others` are (trajectory, radius, speed); the searcher leaves `start` at t = 0 and
+        stays inside [lower, upper], so it cannot meet anything it could not reach in time."""
         step = 0.1 / max([speed] + [v for _, _, v in others])
         horizon = max((t.end_time for t, _, _ in others), default=0.0)
         grid = np.arange(0.0, horizon + step, step)
@@ -58,6 +60,8 @@ class Traffic:
             need = radius + r + (speed + v) * step / 2
             at = trajectory.at(grid)  # NaN once landed
             near = np.all((at >= lower - need) & (at <= upper + need), axis=1)
+            with np.errstate(invalid="ignore"):  # NaN once the other UAV has landed
+                near &= np.hypot(*(at - start).T) - need <= speed * grid
             slots.append(np.flatnonzero(near))
             places.append(at[near])
             needs.append(np.full(near.sum(), need))

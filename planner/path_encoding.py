@@ -36,11 +36,13 @@ class DetourEncoding:
 
     @classmethod
     def around(
-        cls, path: Array, spacing: float = 2.0, max_offset: float = 1.5, max_wait: float = 10.0
+        cls, path: Array, points: int = 10, max_offset: float = 1.5, max_wait: float = 10.0
     ) -> DetourEncoding:
-        """Base points on `path` (cells or waypoints): its corners plus a point every
-        `spacing` cells, so a straight stretch can still bend."""
+        """Base points on `path` (cells or waypoints): its corners plus about `points` more
+        spread along it, at least 2 cells apart, so a straight stretch can still bend."""
         corners = merge_collinear(path)
+        total = float(np.hypot(*np.diff(corners, axis=0).T).sum()) if len(corners) > 1 else 0.0
+        spacing = max(2.0, total / points)
         points = [corners[0]]
         for a, b in itertools.pairwise(corners):
             pieces = max(1, int(np.ceil(np.hypot(*(b - a)) / spacing)))

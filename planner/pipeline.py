@@ -23,18 +23,20 @@ from numpy.typing import NDArray
 
 from planner.black_hole import Search, search_path
 from planner.clearance import ClearanceField
-from planner.grid_search import GridGraph, path_length
+from planner.grid_search import GridGraph
 from planner.objectives import ObjectiveName, PaperObjective, QosObjective, paper_fitness
 from planner.optimizers import get_algorithm
 from planner.path_cost import Traffic
 from planner.path_encoding import DetourEncoding, TurnEncoding, grid_steps
 from planner.plan import Metrics, Plan, PlannedUAV
+from planner.references import shortest_lengths
 from planner.safety import cell_conflicts, check_plan
 from planner.scenario import Scenario, UAVSpec
 from planner.trajectory import Trajectory, merge_collinear
 from planner.white_hole import Exploration, explore
 
 Array = NDArray[np.float64]
+MAX_HOVER = 10.0  # seconds a UAV may hover at one waypoint to let others pass
 
 
 @dataclass(frozen=True)
@@ -112,7 +114,12 @@ class _Planning:
             if u != uav
         ]
         traffic = Traffic.around(
-            others, radius=spec.radius, speed=spec.speed, lower=region[0], upper=region[1]
+            others,
+            radius=spec.radius,
+            speed=spec.speed,
+            start=np.array(spec.start, dtype=float),
+            lower=region[0],
+            upper=region[1],
         )
         penalty = 100.0 * (world.blocked.shape[0] + world.blocked.shape[1] + 10)
         return Search(
@@ -138,7 +145,7 @@ class _Planning:
                 return False
             horizon = max((t.end_time for u, t in self.paths.items() if u != uav), default=1.0)
             encoding: DetourEncoding | TurnEncoding = DetourEncoding.around(
-                np.array(cells, dtype=float), max_wait=horizon + 1.0
+                np.array(cells, dtype=float), max_wait=min(horizon + 1.0, MAX_HOVER)
             )
         else:
             offset = self.paths[uav].end - np.array(spec.goal, dtype=float)
@@ -232,14 +239,12 @@ def plan(
     obstacles = _Map.of(scenario.blocked())
     specs = {u.id: u for u in scenario.uavs}
     objects = scenario.object_cells()
-    with_objects = GridGraph.build(_with_objects(obstacles.blocked, objects))
-    paths, shortest = {}, {}
+    paths = {}
     for u in scenario.uavs:
         cells = obstacles.graph.shortest_path(u.start, u.goal)
         assert cells is not None, "the scenario's validation guarantees a path"
         paths[u.id] = Trajectory.from_waypoints(merge_collinear(cells), u.speed)
-        # The reference a plan's length is judged by: alone on the grid, objects known.
-        shortest[u.id] = path_length(with_objects.shortest_path(u.start, u.goal) or cells)
+    shortest = shortest_lengths(scenario)
     rng = np.random.default_rng(settings.seed)
     state = _Planning(scenario, settings, progress, rng, specs, paths, shortest, {}, objects)
     first = state.explore(obstacles)

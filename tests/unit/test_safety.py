@@ -61,11 +61,14 @@ def test_exact_closest_approach_never_above_dense_sampling(a, b) -> None:
     assert 0 <= when <= end + 1e-9
 
 
-def traffic(others: list[Trajectory], lower=(-1.0, -1.0), upper=(7.0, 7.0)) -> Traffic:
+def traffic(
+    others: list[Trajectory], start: np.ndarray, lower=(-1.0, -1.0), upper=(7.0, 7.0)
+) -> Traffic:
     return Traffic.around(
         [(o, 0.3, 1.0) for o in others],
         radius=0.3,
         speed=1.0,
+        start=start,
         lower=np.array(lower),
         upper=np.array(upper),
     )
@@ -82,7 +85,7 @@ def test_planner_cost_errs_on_the_safe_side_only(mine, hold, others) -> None:
     waypoints = np.array(mine)[None]
     waits = np.array(hold[: len(mine)])[None]
     times, positions = timeline(waypoints, waits, 1.0)
-    _, hits = separation_terms(times, positions, traffic(others))
+    _, hits = separation_terms(times, positions, traffic(others, waypoints[0, 0]))
     me = Trajectory(np.column_stack([times[0], positions[0]]))
     exact = min(closest_approach(me, o)[0] for o in others)
     if exact < 0.6:
