@@ -9,7 +9,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from planner.cases import CASES, load_case
+from planner.cases import CASES, PAPER_POPULATIONS, load_case
 from planner.experiments.library_comparison import BenchDependencyError
 from planner.optimizers import ALGORITHMS, ObjectiveError, OptimizerInputError
 from planner.scenario import Scenario, load_scenario
@@ -57,6 +57,22 @@ def _reproduce_benchmarks(args: argparse.Namespace) -> int:
         algorithms=tuple(args.algorithms),
     )
     report = run_study(config, args.out, workers=args.workers, scheduler=args.scheduler)
+    print(f"wrote {report}")
+    return 0
+
+
+def _reproduce_cases(args: argparse.Namespace) -> int:
+    from planner.experiments.case_study import CaseStudyConfig, run_case_study
+
+    config = CaseStudyConfig(
+        seeds=args.seeds,
+        iterations=args.iterations,
+        populations=tuple(dict.fromkeys(args.populations)),
+        algorithms=tuple(dict.fromkeys(args.algorithms)),
+        objective=args.objective,
+        cases=tuple(dict.fromkeys(args.cases)),
+    )
+    report = run_case_study(config, args.out, workers=args.workers, scheduler=args.scheduler)
     print(f"wrote {report}")
     return 0
 
@@ -128,6 +144,21 @@ def _plan(args: argparse.Namespace) -> int:
     return 0 if result.feasible else 1
 
 
+def _bench_planner(args: argparse.Namespace) -> int:
+    from planner.experiments.planner_bench import PlannerBenchConfig, run_planner_bench
+
+    config = PlannerBenchConfig(
+        scenarios=args.scenarios,
+        first_seed=args.first_seed,
+        algorithm=args.algorithm,
+        population=args.population,
+        iterations=args.iterations,
+        workers=args.workers,
+    )
+    print(f"wrote {run_planner_bench(config, args.out)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mvo-gcs", description="MVO multi-UAV path planning and ground station"
@@ -160,6 +191,31 @@ def build_parser() -> argparse.ArgumentParser:
     _add_executor_options(bench_fns)
     bench_fns.set_defaults(handler=_reproduce_benchmarks)
 
+    cases = studies.add_parser(
+        "cases",
+        help="Table III and Figs. 3-5: the paper's six cases planned by every algorithm",
+    )
+    cases.add_argument("--out", type=Path, required=True, help="output directory")
+    cases.add_argument("--seeds", type=_positive_int, default=30)
+    cases.add_argument("--iterations", type=_positive_int, default=1000)
+    cases.add_argument(
+        "--populations", type=_positive_int, nargs="+", default=list(PAPER_POPULATIONS)
+    )
+    cases.add_argument(
+        "--algorithms", nargs="+", choices=sorted(ALGORITHMS), default=list(ALGORITHMS)
+    )
+    cases.add_argument(
+        "--objective",
+        choices=["paper", "qos"],
+        default="paper",
+        help="eq. (10) as in the paper (default), or the product's qos objective",
+    )
+    cases.add_argument(
+        "--cases", nargs="+", choices=CASES, default=list(CASES), help="default: all six"
+    )
+    _add_executor_options(cases)
+    cases.set_defaults(handler=_reproduce_cases)
+
     plan = commands.add_parser(
         "plan", help="plan collision-free paths for a scenario; exit 1 if no safe plan"
     )
@@ -187,6 +243,23 @@ def build_parser() -> argparse.ArgumentParser:
         "--algorithms", nargs="+", choices=sorted(ALGORITHMS), default=list(ALGORITHMS)
     )
     libs.set_defaults(handler=_bench_optimizers)
+
+    paths = benches.add_parser(
+        "planner", help="the path planner's targets: six cases, speed, 100 generated scenarios"
+    )
+    paths.add_argument("--out", type=Path, default=Path("bench/results/planner.md"))
+    paths.add_argument("--scenarios", type=_positive_int, default=100)
+    paths.add_argument("--first-seed", type=int, default=0)
+    paths.add_argument("--algorithm", choices=sorted(ALGORITHMS), default="mvo")
+    paths.add_argument("--population", type=_positive_int, default=30)
+    paths.add_argument("--iterations", type=_positive_int, default=1000)
+    paths.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=None,
+        help="processes for the generated scenarios (timed sections always run alone)",
+    )
+    paths.set_defaults(handler=_bench_planner)
     return parser
 
 

@@ -105,13 +105,16 @@ class _Planning:
         count = len(self.specs) + len(self.objects)
         return PaperObjective(count, self.start_distance[uav], penalty)
 
-    def search(self, uav: str, world: _Map, region: tuple[Array, Array]) -> Search:
-        """Costs for `uav`'s paths inside `region` against everything else, held fixed."""
+    def search(
+        self, uav: str, world: _Map, region: tuple[Array, Array], ignore: str | None = None
+    ) -> Search:
+        """Costs for `uav`'s paths inside `region` against everything else (but `ignore`),
+        held fixed."""
         spec = self.specs[uav]
         others = [
             (self.paths[u], self.specs[u].radius, self.specs[u].speed)
             for u in self.paths
-            if u != uav
+            if u not in (uav, ignore)
         ]
         traffic = Traffic.around(
             others,
@@ -131,10 +134,11 @@ class _Planning:
             self.objective(uav, penalty),
         )
 
-    def current_cost(self, uav: str, world: _Map) -> float:
+    def current_cost(self, uav: str, world: _Map, ignore: str | None = None) -> float:
         waypoints, waits = _as_waypoints(self.paths[uav])
         region = (waypoints.min(axis=0), waypoints.max(axis=0))
-        return float(self.search(uav, world, region).cost(waypoints[None], waits[None])[0])
+        search = self.search(uav, world, region, ignore)
+        return float(search.cost(waypoints[None], waits[None])[0])
 
     def replan(self, uav: str, world: _Map, reason: str) -> bool:
         """One optimizer run for `uav`; keeps the new path if it costs less. True if kept."""
@@ -153,7 +157,8 @@ class _Planning:
             encoding = TurnEncoding(grid_steps(merge_collinear(self.paths[uav].xy)), same_way)
         search = self.search(uav, world, encoding.region())
         before = self.current_cost(uav, world)
-        others = sum(self.current_cost(u, world) for u in self.paths if u != uav)
+        # The others' costs leave out their conflicts with `uav`: its own cost counts them.
+        others = sum(self.current_cost(u, world, ignore=uav) for u in self.paths if u != uav)
         scale = 1.0 if self.settings.objective == "qos" else 1.0 / len(self.paths)
         self.runs += 1
         run = self.runs
