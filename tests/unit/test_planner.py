@@ -141,3 +141,12 @@ def test_any_feasible_plan_passes_an_independent_check(data: dict, seed: int) ->
         assert problems == []
     else:
         assert result.conflicts, "an infeasible plan must say why"
+
+
+def test_progress_reports_every_iteration_of_every_run() -> None:
+    seen = []
+    result = plan(load_case("case-5"), PlannerSettings(**FAST), progress=seen.append)
+    assert len(seen) == result.metrics.replans * FAST["iterations"] == len(result.history)
+    assert [p.run for p in seen] == sorted(p.run for p in seen)
+    assert {p.iteration for p in seen} == set(range(1, FAST["iterations"] + 1))
+    assert seen[-1].plan_cost == pytest.approx(result.history[-1], abs=1e-6)
