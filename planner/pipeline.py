@@ -65,13 +65,16 @@ ProgressCallback = Callable[[PlanProgress], None]
 
 @dataclass
 class _Map:
+    """What counts as blocked (for judging paths) and what searches keep away from."""
+
     blocked: NDArray[np.bool_]
     graph: GridGraph
     field: ClearanceField
 
     @classmethod
-    def of(cls, blocked: NDArray[np.bool_]) -> _Map:
-        return cls(blocked, GridGraph.build(blocked), ClearanceField.build(blocked))
+    def of(cls, blocked: NDArray[np.bool_], avoid: NDArray[np.bool_] | None = None) -> _Map:
+        searched = blocked if avoid is None else blocked | avoid
+        return cls(blocked, GridGraph.build(searched), ClearanceField.build(searched))
 
 
 @dataclass
@@ -255,7 +258,13 @@ def plan(
     first = state.explore(obstacles)
     state.start_distance = _adjoining_start_distance(scenario, first.priority)
 
-    state.resolve_conflicts(obstacles)
+    # The paper plans around the UAVs first and meets the objects only in the wormhole
+    # step. With `qos` the searches already keep clear of the objects the scenario
+    # declares, so a detour never runs into one; the wormhole step still replans the
+    # UAVs whose first paths the objects touch, and only those.
+    known = _with_objects(np.zeros_like(obstacles.blocked), objects)
+    first_world = _Map.of(obstacles.blocked, known) if settings.objective == "qos" else obstacles
+    state.resolve_conflicts(first_world)
     state.wormhole(obstacles)
     return _finish(state, obstacles, first, time.perf_counter() - started)
 
