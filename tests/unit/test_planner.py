@@ -150,3 +150,11 @@ def test_progress_reports_every_iteration_of_every_run() -> None:
     assert [p.run for p in seen] == sorted(p.run for p in seen)
     assert {p.iteration for p in seen} == set(range(1, FAST["iterations"] + 1))
     assert seen[-1].plan_cost == pytest.approx(result.history[-1], abs=1e-6)
+
+
+@pytest.mark.parametrize("algorithm", ["alo", "da", "gwo", "mfo", "mvo", "woa"])
+@pytest.mark.parametrize("objective", ["qos", "paper"])
+def test_every_optimizer_drives_either_objective(algorithm: str, objective: str) -> None:
+    result = plan(load_case("case-1"), PlannerSettings(algorithm, objective, 3, 10, 40))
+    assert result.algorithm == algorithm and result.objective == objective
+    assert result.feasible and result.metrics.nfe == result.metrics.replans * 10 * 40
