@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -36,6 +37,7 @@ from planner.trajectory import Trajectory, merge_collinear
 from planner.white_hole import Exploration, explore
 
 Array = NDArray[np.float64]
+ATTEMPTS = 3  # searches a UAV in trouble gets before the others take over
 MAX_HOVER = 10.0  # seconds a UAV may hover at one waypoint to let others pass
 
 
@@ -204,17 +206,18 @@ class _Planning:
 
     def resolve_conflicts(self, world: _Map, reason: str = "uav conflict") -> None:
         """Step 2: the highest-priority UAV in trouble replans until none is left, or until
-        every UAV in trouble has tried and failed since the last success."""
-        stuck: set[str] = set()
-        for _ in range(4 * len(self.specs)):
-            candidates = [u for u in self.troubled(world) if u not in stuck]
+        every UAV in trouble has failed ATTEMPTS times since the last success (the search
+        is random, so a second try from where the first left off often succeeds)."""
+        failures: Counter[str] = Counter()
+        for _ in range(6 * len(self.specs)):
+            candidates = [u for u in self.troubled(world) if failures[u] < ATTEMPTS]
             if not candidates:
                 return
             uav = candidates[0]
             if self.replan(uav, world, reason) and uav not in self.troubled(world):
-                stuck.clear()
+                failures.clear()
             else:
-                stuck.add(uav)
+                failures[uav] += 1
 
     def wormhole(self, world: _Map) -> _Map:
         """Step 3: the objects block their cells; only the UAVs they touch replan."""
