@@ -22,10 +22,6 @@ MAX_RANDOM_OBJECTS = 10_000
 Cell = tuple[Annotated[int, Field(strict=True)], Annotated[int, Field(strict=True)]]
 
 
-class ScenarioError(ValueError):
-    """The scenario cannot be planned; the message says what is wrong and where."""
-
-
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
