@@ -8,6 +8,7 @@ scipy's Dijkstra on a sparse graph built in one vectorised pass.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,6 +89,14 @@ def descend(field: NDArray[np.float64], start: Cell, blocked: NDArray[np.bool_])
         x, y = best_cell
         path.append(best_cell)
     return path
+
+
+def cell_map(cells: Iterable[Cell], shape: tuple[int, int]) -> NDArray[np.bool_]:
+    """A boolean map, indexed [x, y], that is True on `cells`."""
+    grid = np.zeros(shape, dtype=bool)
+    for cell in cells:
+        grid[cell] = True
+    return grid
 
 
 def path_length(cells: list[Cell]) -> float:

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from planner.black_hole import Search, search_path
 from planner.clearance import ClearanceField
-from planner.grid_search import GridGraph
+from planner.grid_search import GridGraph, cell_map
 from planner.objectives import ObjectiveName, PaperObjective, QosObjective, paper_fitness
 from planner.optimizers import get_algorithm
 from planner.path_cost import Traffic
@@ -223,7 +223,7 @@ class _Planning:
         """Step 3: the objects block their cells; only the UAVs they touch replan."""
         if not self.objects:
             return world
-        object_map = _with_objects(np.zeros_like(world.blocked), self.objects)
+        object_map = cell_map(self.objects, world.blocked.shape)
         touched = [
             u
             for u in self.specs
@@ -265,18 +265,11 @@ def plan(
     # step. With `qos` the searches already keep clear of the objects the scenario
     # declares, so a detour never runs into one; the wormhole step still replans the
     # UAVs whose first paths the objects touch, and only those.
-    known = _with_objects(np.zeros_like(obstacles.blocked), objects)
+    known = cell_map(objects, obstacles.blocked.shape)
     first_world = _Map.of(obstacles.blocked, known) if settings.objective == "qos" else obstacles
     state.resolve_conflicts(first_world)
     state.wormhole(obstacles)
     return _finish(state, obstacles, first, time.perf_counter() - started)
-
-
-def _with_objects(blocked: NDArray[np.bool_], objects: list[tuple[int, int]]) -> NDArray[np.bool_]:
-    out = blocked.copy()
-    for cell in objects:
-        out[cell] = True
-    return out
 
 
 def _adjoining_start_distance(scenario: Scenario, priority: dict[str, float]) -> dict[str, float]:

@@ -49,3 +49,7 @@ class Plan(_Out):
         default_factory=list, description="what keeps an infeasible plan from being safe"
     )
     history: list[float] = Field(description="plan cost after every optimizer iteration")
+
+    def length_ratio(self) -> float:
+        """Total length over the sum of each UAV's own shortest path (objects known)."""
+        return self.metrics.total_length / sum(u.shortest_length for u in self.uavs)

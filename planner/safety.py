@@ -16,6 +16,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.grid_search import cell_map
 from planner.trajectory import Trajectory
 
 Cell = tuple[int, int]
@@ -206,9 +207,7 @@ def check_plan(
 ) -> SafetyReport:
     """Every conflict of the plan: UAV pairs, obstacle cells and non-UAV objects."""
     conflicts, closest = uav_conflicts(trajectories, radii)
-    object_map = np.zeros_like(obstacles)
-    for cell in objects:
-        object_map[cell] = True
+    object_map = cell_map(objects, obstacles.shape)
     for uav, trajectory in trajectories.items():
         conflicts += cell_conflicts(uav, trajectory, radii[uav], obstacles, "obstacle")
         conflicts += cell_conflicts(uav, trajectory, radii[uav], object_map, "non_uav_object")

@@ -18,9 +18,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
-import numpy as np
-from numpy.typing import NDArray
-
+from planner.grid_search import cell_map
 from planner.safety import Conflict, cell_conflicts, uav_conflicts
 from planner.trajectory import Trajectory
 
@@ -47,7 +45,7 @@ def explore(
 ) -> Exploration:
     conflicts, closest = uav_conflicts(trajectories, radii)
     collision_paths = {u: [c for c in conflicts if u in c.uavs] for u in trajectories}
-    object_map = _object_map(objects, grid_shape)
+    object_map = cell_map(objects, grid_shape)
     objects_total = int(object_map.sum())
     others = max(len(trajectories) - 1, 1)
     priority, threat = {}, {}
@@ -62,10 +60,3 @@ def explore(
         wep = on_path / objects_total if objects_total else 0.0
         threat[uav] = len(pc) / others * wep
     return Exploration(conflicts, collision_paths, priority, dict(shortest), threat, closest)
-
-
-def _object_map(objects: Iterable[Cell], shape: tuple[int, int]) -> NDArray[np.bool_]:
-    grid = np.zeros(shape, dtype=bool)
-    for cell in objects:
-        grid[cell] = True
-    return grid

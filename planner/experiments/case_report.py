@@ -87,7 +87,7 @@ def render_references(cases: Sequence[str]) -> str:
     for case in cases:
         scenario = load_case(case)
         ours = plan(scenario, PlannerSettings())
-        ratio = ours.metrics.total_length / sum(u.shortest_length for u in ours.uavs)
+        ratio = ours.length_ratio()
         rows.append(
             f"| {case} | MVO qos | {ours.feasible} | {ratio:.3f} | "
             f"{ours.metrics.mean_deviation:.2f} | {ours.metrics.seconds:.3f} |"

@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from planner.benchmarks import BENCHMARKS, BenchmarkFunction
+from planner.experiments.machine import cpu_model
 from planner.optimizers import ALGORITHMS, GWO, Algorithm, optimize
 
 LIBRARIES = ("ours", "mealpy", "evolopy")
@@ -385,14 +386,6 @@ def _function_section(
     )
 
 
-def _cpu_model() -> str:
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    return platform.processor() or "unknown"
-
-
 def _package_version(name: str) -> str:
     try:
         return version(name)
@@ -426,7 +419,7 @@ def _machine(code: str) -> str:
     usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else "?"
     items = {
         "platform": platform.platform(),
-        "CPU": _cpu_model(),
+        "CPU": cpu_model(),
         "cores": f"{os.cpu_count()} logical ({usable} usable by this process)",
         "Python": sys.version.split()[0],
         "numpy": np.__version__,

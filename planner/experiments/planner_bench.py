@@ -64,11 +64,6 @@ class ScenarioOutcome:
     conflicts: list[str]
 
 
-def length_ratio(result: Plan) -> float:
-    """Total length over the sum of each UAV's own shortest path (objects known)."""
-    return result.metrics.total_length / sum(u.shortest_length for u in result.uavs)
-
-
 def plan_generated(task: tuple[int, PlannerSettings]) -> list[ScenarioOutcome]:
     """Our planner and the reference planners on one generated scenario."""
     seed, settings = task
@@ -78,7 +73,7 @@ def plan_generated(task: tuple[int, PlannerSettings]) -> list[ScenarioOutcome]:
     messages = [c["message"] for c in result.conflicts]
     outcomes = [
         ScenarioOutcome(
-            seed, name, result.feasible, length_ratio(result), result.metrics.seconds, messages
+            seed, name, result.feasible, result.length_ratio(), result.metrics.seconds, messages
         )
     ]
     for reference in _references(scenario):
@@ -148,7 +143,7 @@ def _cases_section(config: PlannerBenchConfig) -> str:
             paper = PAPER_TABLE_III[case]["deviation"]
             rows.append(
                 f"| {case} | {objective} | {r.feasible} | {r.metrics.conflicts} | "
-                f"{r.metrics.mean_deviation:.2f} ({paper}) | {length_ratio(r):.3f} | "
+                f"{r.metrics.mean_deviation:.2f} ({paper}) | {r.length_ratio():.3f} | "
                 f"{r.metrics.J:.3f} | {r.metrics.seconds:.2f} |"
             )
     return "\n".join(rows) + "\n"
