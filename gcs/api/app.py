@@ -1,0 +1,75 @@
+"""The FastAPI application: its parts are built in the lifespan, routers hold the endpoints."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator, Awaitable, Callable
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI, Request
+from fastapi.responses import JSONResponse
+
+from gcs.api.auth import ensure_token
+from gcs.api.body_limit import BodySizeLimit
+from gcs.api.deps import Services
+from gcs.api.planning import JobNotCancellable
+from gcs.api.routers import health, plans, scenarios
+from gcs.planning_jobs import PlanningPool
+from gcs.settings import Settings
+from gcs.storage import Database, NotFound
+
+log = logging.getLogger("mvo_gcs")
+
+DESCRIPTION = """Plans collision-free paths for several UAVs with the multi-verse optimizer
+(MVO) or one of five other metaheuristics, turns them into MAVLink missions, uploads them
+to the vehicles, flies the fleet together and streams its telemetry.
+
+Reading is open; every request that changes state needs `Authorization: Bearer <token>`.
+"""
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        db = Database(settings.resolved_database_url)
+        recovered = db.recover()
+        if any(recovered.values()):
+            log.warning("marked unfinished work from the last run as interrupted: %s", recovered)
+        token, token_file = ensure_token(settings)
+        services = Services.build(settings, db)
+        pool = PlanningPool(settings.plan_workers, services.planning.on_progress)
+        pool.start()
+        services.planning.pool = pool
+        app.state.token, app.state.token_file, app.state.services = token, token_file, services
+        try:
+            yield
+        finally:
+            await services.planning.shutdown()
+            pool.shutdown()
+            db.close()
+
+    app = FastAPI(
+        title="mvo-gcs",
+        version="0.1.0",
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    for router in (scenarios.router, plans.router, health.router):
+        app.include_router(router)
+    _add_error_handlers(app)
+    return app
+
+
+def _add_error_handlers(app: FastAPI) -> None:
+    def problem(status: int) -> Callable[[Request, Exception], Awaitable[JSONResponse]]:
+        async def handler(_: Request, exc: Exception) -> JSONResponse:
+            return JSONResponse({"detail": str(exc)}, status_code=status)
+
+        return handler
+
+    app.add_exception_handler(NotFound, problem(404))
+    app.add_exception_handler(JobNotCancellable, problem(409))

@@ -1,0 +1,61 @@
+"""Dependencies the routers ask for: the service's parts and the token check."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated
+
+from fastapi import Depends
+from starlette.requests import HTTPConnection
+
+from gcs.api.auth import require_token
+from gcs.api.metrics import ServiceMetrics
+from gcs.api.planning import PlanningService
+from gcs.settings import Settings
+from gcs.storage import (
+    Database,
+    FlightRepository,
+    JobRepository,
+    PlanRepository,
+    ScenarioRepository,
+    VehicleRepository,
+)
+
+
+@dataclass
+class Services:
+    """The parts one service instance is made of; built once in the app's lifespan."""
+
+    settings: Settings
+    db: Database
+    metrics: ServiceMetrics
+    scenarios: ScenarioRepository
+    plans: PlanRepository
+    jobs: JobRepository
+    vehicles: VehicleRepository
+    flights: FlightRepository
+    planning: PlanningService
+
+    @classmethod
+    def build(cls, settings: Settings, db: Database) -> Services:
+        metrics = ServiceMetrics()
+        scenarios, plans, jobs = ScenarioRepository(db), PlanRepository(db), JobRepository(db)
+        return cls(
+            settings=settings,
+            db=db,
+            metrics=metrics,
+            scenarios=scenarios,
+            plans=plans,
+            jobs=jobs,
+            vehicles=VehicleRepository(db),
+            flights=FlightRepository(db),
+            planning=PlanningService(scenarios, plans, jobs, metrics),
+        )
+
+
+def get_services(connection: HTTPConnection) -> Services:
+    return connection.app.state.services
+
+
+ServicesDep = Annotated[Services, Depends(get_services)]
+Authorized = [Depends(require_token)]

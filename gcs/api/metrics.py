@@ -1,0 +1,36 @@
+"""Prometheus metrics of one service instance (its own registry, so tests can run several)."""
+
+from __future__ import annotations
+
+from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
+
+
+class ServiceMetrics:
+    def __init__(self) -> None:
+        self.registry = CollectorRegistry()
+        self.plans = Counter(
+            "mvo_gcs_plans", "plans finished, by outcome", ["outcome"], registry=self.registry
+        )
+        self.plan_seconds = Histogram(
+            "mvo_gcs_plan_seconds",
+            "wall time of a plan request, queueing included",
+            buckets=(0.1, 0.25, 0.5, 1, 2, 5, 10, 30, 60, 300),
+            registry=self.registry,
+        )
+        self.uploads = Counter(
+            "mvo_gcs_uploads", "mission uploads, by outcome", ["outcome"], registry=self.registry
+        )
+        self.upload_retries = Counter(
+            "mvo_gcs_upload_retries", "mission-protocol messages re-sent", registry=self.registry
+        )
+        self.link_up = Gauge(
+            "mvo_gcs_vehicle_link_up", "1 while a vehicle is heard", ["vehicle"],
+            registry=self.registry,
+        )
+        self.replans = Counter(
+            "mvo_gcs_live_replans", "live replanning requests, by outcome", ["outcome"],
+            registry=self.registry,
+        )
+
+    def render(self) -> bytes:
+        return generate_latest(self.registry)

@@ -1,0 +1,76 @@
+"""What the API takes and gives. Scenarios and plans are the planner's own models."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from planner.optimizers import ALGORITHMS
+from planner.plan import Plan
+from planner.scenario import Scenario
+
+
+class _In(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class _Out(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+
+class ScenarioOut(_Out):
+    id: str
+    name: str
+    created_at: datetime
+    scenario: Scenario
+
+
+class PlanRequest(_In):
+    algorithm: str = Field(default="mvo", description=f"one of {', '.join(sorted(ALGORITHMS))}")
+    objective: Literal["qos", "paper"] = "qos"
+    seed: int = Field(default=1, ge=0, le=2**32 - 1)
+    population: int = Field(default=30, ge=2, le=500)
+    iterations: int = Field(default=200, ge=1, le=100_000)
+    wait_s: float | None = Field(
+        default=None,
+        ge=0,
+        le=60,
+        description="seconds to wait for the plan before answering 202 with a job "
+        "(default: the service's setting)",
+    )
+
+    @field_validator("algorithm")
+    @classmethod
+    def _known(cls, name: str) -> str:
+        key = name.lower()
+        if key not in ALGORITHMS:
+            raise ValueError(f"unknown algorithm {name!r}; choose one of {sorted(ALGORITHMS)}")
+        return key
+
+
+class PlanOut(_Out):
+    id: str
+    scenario_id: str
+    created_at: datetime
+    plan: Plan
+
+
+class JobOut(_Out):
+    id: str
+    scenario_id: str
+    state: Literal["queued", "running", "done", "failed", "cancelled", "interrupted"]
+    percent: float
+    best_cost: float | None
+    plan_id: str | None
+    error: str | None
+    settings: dict[str, Any]
+    created_at: datetime
+    updated_at: datetime
+
+
+class Problem(BaseModel):
+    """Every 4xx answer: what is wrong, and where when it is in the request."""
+
+    detail: str | list[dict[str, Any]]

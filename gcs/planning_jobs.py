@@ -1,0 +1,123 @@
+"""Planning off the event loop: a pool of worker processes, progress and cancellation.
+
+Planning is CPU-bound numpy work that holds the GIL for long stretches, so it runs
+in processes, never on the service's event loop. Workers report progress through a
+manager queue (throttled, so a fast plan does not flood it) and look at a shared
+set of cancelled job ids between optimizer iterations.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import multiprocessing
+import queue
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from planner.pipeline import PlannerSettings, PlanProgress, plan
+from planner.scenario import load_scenario
+
+PROGRESS_INTERVAL_S = 0.2
+
+
+class PlanCancelled(Exception):
+    """Raised inside a worker when its job was cancelled."""
+
+
+@dataclass(frozen=True)
+class JobProgress:
+    job_id: str
+    percent: float  # an estimate: runs so far against one run per UAV
+    best_cost: float
+    run: int
+    uav: str
+
+
+ProgressSink = Callable[[JobProgress], None]
+
+
+class PlanningPool:
+    """A fixed pool of planning processes shared by every request."""
+
+    def __init__(self, workers: int, on_progress: ProgressSink) -> None:
+        context = multiprocessing.get_context("spawn")  # no fork of a threaded server
+        self._manager = context.Manager()
+        self._progress = self._manager.Queue()
+        self._cancelled = self._manager.dict()
+        self._executor = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+        self._on_progress = on_progress
+        self._stop = threading.Event()
+        self._reader = threading.Thread(target=self._read_progress, daemon=True)
+        self._loop: asyncio.AbstractEventLoop | None = None
+
+    def start(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._reader.start()
+
+    def submit(
+        self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings
+    ) -> asyncio.Future[dict[str, Any]]:
+        """The plan's JSON when the worker is done; PlanCancelled if cancelled first."""
+        future = self._executor.submit(
+            run_plan, job_id, scenario, asdict(settings), self._progress, self._cancelled
+        )
+        return asyncio.wrap_future(future)
+
+    def cancel(self, job_id: str) -> None:
+        self._cancelled[job_id] = True
+
+    def forget(self, job_id: str) -> None:
+        self._cancelled.pop(job_id, None)
+
+    def shutdown(self) -> None:
+        self._stop.set()
+        self._executor.shutdown(wait=False, cancel_futures=True)
+        if self._reader.is_alive():
+            self._reader.join(timeout=2)
+        with contextlib.suppress(Exception):
+            self._manager.shutdown()
+
+    def _read_progress(self) -> None:
+        while not self._stop.is_set():
+            try:
+                item = self._progress.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            except (EOFError, OSError, BrokenPipeError):
+                return  # the manager is gone: the service is stopping
+            if self._loop is not None and not self._loop.is_closed():
+                self._loop.call_soon_threadsafe(self._on_progress, JobProgress(*item))
+
+
+def run_plan(
+    job_id: str,
+    scenario: dict[str, Any],
+    settings: dict[str, Any],
+    progress: Any,
+    cancelled: Any,
+) -> dict[str, Any]:
+    """The worker: plan one scenario, reporting progress and honouring cancellation."""
+    parsed = load_scenario(scenario)
+    expected_runs = len(parsed.uavs)
+    last = 0.0
+
+    def on_progress(p: PlanProgress) -> None:
+        nonlocal last
+        at = time.monotonic()
+        if at - last < PROGRESS_INTERVAL_S and p.iteration < p.iterations:
+            return
+        last = at
+        if cancelled.get(job_id):
+            raise PlanCancelled(job_id)
+        done = (p.run - 1 + p.iteration / p.iterations) / max(expected_runs, p.run)
+        progress.put((job_id, round(min(99.0, 100 * done), 1), p.plan_cost, p.run, p.uav))
+
+    if cancelled.get(job_id):
+        raise PlanCancelled(job_id)
+    result = plan(parsed, PlannerSettings(**settings), progress=on_progress)
+    return result.model_dump(mode="json")

@@ -1,0 +1,35 @@
+"""Service settings: command-line flags override environment variables (`MVO_GCS_*`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+class Settings(BaseSettings):
+    model_config = SettingsConfigDict(env_prefix="MVO_GCS_", extra="ignore")
+
+    host: str = Field(default="127.0.0.1", description="bind address; loopback unless asked")
+    port: int = Field(default=8000, ge=0, le=65535)
+    data_dir: Path = Field(default=Path("mvo-gcs-data"), description="SQLite file and token")
+    database_url: str | None = Field(
+        default=None, description="SQLAlchemy URL; default: SQLite under data_dir"
+    )
+    token: str | None = Field(default=None, description="bearer token for mutating requests")
+    max_body_bytes: int = Field(default=1_000_000, ge=1_000)
+    plan_workers: int = Field(default=2, ge=1, le=64, description="planning processes")
+    inline_plan_wait_s: float = Field(
+        default=2.0, ge=0, le=60, description="how long a plan request waits before it answers 202"
+    )
+    max_plan_iterations: int = Field(default=5000, ge=1)
+    live_rate_hz: float = Field(default=10.0, gt=0, le=50)
+
+    @property
+    def resolved_database_url(self) -> str:
+        return self.database_url or f"sqlite:///{(self.data_dir / 'mvo-gcs.db').resolve()}"
+
+    @property
+    def token_file(self) -> Path:
+        return self.data_dir / "token"
