@@ -18,12 +18,15 @@ class Settings(BaseSettings):
         default=None, description="SQLAlchemy URL; default: SQLite under data_dir"
     )
     token: str | None = Field(default=None, description="bearer token for mutating requests")
+    show_token: bool = Field(default=False, description="print the token itself at start-up")
     max_body_bytes: int = Field(default=1_000_000, ge=1_000)
     plan_workers: int = Field(default=2, ge=1, le=64, description="planning processes")
     inline_plan_wait_s: float = Field(
         default=2.0, ge=0, le=60, description="how long a plan request waits before it answers 202"
     )
-    max_plan_iterations: int = Field(default=5000, ge=1)
+    max_plan_evaluations: int = Field(
+        default=2_000_000, ge=1, description="cap on population x iterations of one request"
+    )
     live_rate_hz: float = Field(default=10.0, gt=0, le=50)
 
     @property

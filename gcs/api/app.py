@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 from collections.abc import AsyncIterator, Awaitable, Callable
 from contextlib import asynccontextmanager
+from pathlib import Path
 
 from fastapi import FastAPI, Request
 from fastapi.responses import JSONResponse
@@ -44,6 +45,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         pool.start()
         services.planning.pool = pool
         app.state.token, app.state.token_file, app.state.services = token, token_file, services
+        _announce(settings, token, token_file)
         try:
             yield
         finally:
@@ -62,6 +64,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(router)
     _add_error_handlers(app)
     return app
+
+
+def _announce(settings: Settings, token: str, token_file: Path | None) -> None:
+    """Where the docs are and where the token is, on the terminal that started us."""
+    print(f"mvo-gcs: API docs at http://{settings.host}:{settings.port}/docs", flush=True)
+    where = f"in {token_file}" if token_file else "from the MVO_GCS_TOKEN setting"
+    print(f"mvo-gcs: bearer token {where}", flush=True)
+    if settings.show_token:
+        print(f"mvo-gcs: token {token}", flush=True)
 
 
 def _add_error_handlers(app: FastAPI) -> None:

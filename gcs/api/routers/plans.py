@@ -41,14 +41,13 @@ async def request_plan(
     """Plan a stored scenario in the worker pool. A plan ready within `wait_s` is answered
     at once (201); otherwise the answer is the job (202), whose progress can be polled at
     `/jobs/{id}` or watched on `/jobs/{id}/live`, and which can be cancelled."""
-    if request.iterations > services.settings.max_plan_iterations:
-        return JSONResponse(
-            {
-                "detail": f"iterations {request.iterations} exceeds this service's limit "
-                f"of {services.settings.max_plan_iterations}"
-            },
-            status_code=422,
+    budget = services.settings.max_plan_evaluations
+    if request.population * request.iterations > budget:
+        detail = (
+            f"population x iterations = {request.population * request.iterations} exceeds "
+            f"this service's limit of {budget} evaluations per optimizer run"
         )
+        return JSONResponse({"detail": detail}, status_code=422)
     settings = PlannerSettings(
         algorithm=request.algorithm,
         objective=request.objective,
