@@ -10,7 +10,7 @@ from typing import Annotated, Self
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from scipy import ndimage
 
 MAX_GRID_SIDE = 500
@@ -25,10 +25,18 @@ Cell = tuple[Annotated[int, Field(strict=True)], Annotated[int, Field(strict=Tru
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_booleans(cls, value: object) -> object:
+        """JSON `true` is not a number here, though pydantic would read it as 1."""
+        if isinstance(value, bool):
+            raise ValueError("expected a number, not a boolean")
+        return value
+
 
 class Grid(_Strict):
-    width: int = Field(ge=1, le=MAX_GRID_SIDE, description="columns (x)")
-    height: int = Field(ge=1, le=MAX_GRID_SIDE, description="rows (y)")
+    width: int = Field(strict=True, ge=1, le=MAX_GRID_SIDE, description="columns (x)")
+    height: int = Field(strict=True, ge=1, le=MAX_GRID_SIDE, description="rows (y)")
     cell_size_m: float = Field(default=10.0, gt=0, le=10_000, description="metres per cell")
 
     def contains(self, cell: Cell) -> bool:
@@ -59,8 +67,8 @@ class UAVSpec(_Strict):
 class RandomObjects(_Strict):
     """`{"random": K, "seed": S}`: K non-UAV objects placed on free cells, as the paper does."""
 
-    random: int = Field(ge=0, le=MAX_RANDOM_OBJECTS)
-    seed: int = 0
+    random: int = Field(strict=True, ge=0, le=MAX_RANDOM_OBJECTS)
+    seed: int = Field(default=0, strict=True)
 
 
 class Scenario(_Strict):

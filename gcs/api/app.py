@@ -8,7 +8,10 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from fastapi import FastAPI, Request
-from fastapi.responses import JSONResponse
+from fastapi.exception_handlers import http_exception_handler
+from fastapi.responses import JSONResponse, Response
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Route
 
 from gcs.api.auth import ensure_token
 from gcs.api.body_limit import BodySizeLimit
@@ -66,6 +69,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     return app
 
 
+def _methods_at(request: Request) -> list[str]:
+    methods: set[str] = set()
+    for route in request.app.routes:
+        if isinstance(route, Route) and route.path_regex.match(request.url.path):
+            methods |= route.methods or set()
+    return sorted(methods)
+
+
 def _announce(settings: Settings, token: str, token_file: Path | None) -> None:
     """Where the docs are and where the token is, on the terminal that started us."""
     print(f"mvo-gcs: API docs at http://{settings.host}:{settings.port}/docs", flush=True)
@@ -82,5 +93,12 @@ def _add_error_handlers(app: FastAPI) -> None:
 
         return handler
 
+    async def http_error(request: Request, exc: Exception) -> Response:
+        response = await http_exception_handler(request, exc)  # type: ignore[arg-type]
+        if response.status_code == 405:  # one path, several routes: name all their methods
+            response.headers["Allow"] = ", ".join(_methods_at(request))
+        return response
+
+    app.add_exception_handler(StarletteHTTPException, http_error)
     app.add_exception_handler(NotFound, problem(404))
     app.add_exception_handler(JobNotCancellable, problem(409))

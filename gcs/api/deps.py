@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import Depends
 from starlette.requests import HTTPConnection
@@ -11,6 +11,7 @@ from starlette.requests import HTTPConnection
 from gcs.api.auth import require_token
 from gcs.api.metrics import ServiceMetrics
 from gcs.api.planning import PlanningService
+from gcs.api.schemas import Problem
 from gcs.settings import Settings
 from gcs.storage import (
     Database,
@@ -58,4 +59,19 @@ def get_services(connection: HTTPConnection) -> Services:
 
 
 ServicesDep = Annotated[Services, Depends(get_services)]
-Authorized = [Depends(require_token)]
+
+_MUTATING_ANSWERS: dict[int | str, dict[str, Any]] = {
+    400: {"model": Problem, "description": "the body could not be read"},
+    401: {"model": Problem, "description": "no bearer token"},
+    403: {"model": Problem, "description": "wrong bearer token"},
+    413: {"model": Problem, "description": "the body is too large"},
+    422: {"model": Problem, "description": "the request is invalid; `detail` says where"},
+}
+
+
+def mutating(responses: dict[int | str, dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Route options of an endpoint that changes state: the token check and its answers."""
+    return {
+        "dependencies": [Depends(require_token)],
+        "responses": {**_MUTATING_ANSWERS, **(responses or {})},
+    }

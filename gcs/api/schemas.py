@@ -2,18 +2,26 @@
 
 from __future__ import annotations
 
-from datetime import datetime
-from typing import Any, Literal
+from datetime import UTC, datetime
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator
 
 from planner.optimizers import ALGORITHMS
 from planner.plan import Plan
 from planner.scenario import Scenario
 
 
+def _utc(value: datetime) -> datetime:
+    """SQLite forgets the zone it was given; every stored time is UTC."""
+    return value if value.tzinfo else value.replace(tzinfo=UTC)
+
+
+UtcDatetime = Annotated[datetime, AfterValidator(_utc)]
+
+
 class _In(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True)
 
 
 class _Out(BaseModel):
@@ -23,7 +31,7 @@ class _Out(BaseModel):
 class ScenarioOut(_Out):
     id: str
     name: str
-    created_at: datetime
+    created_at: UtcDatetime
     scenario: Scenario
 
 
@@ -53,7 +61,7 @@ class PlanRequest(_In):
 class PlanOut(_Out):
     id: str
     scenario_id: str
-    created_at: datetime
+    created_at: UtcDatetime
     plan: Plan
 
 
@@ -66,8 +74,8 @@ class JobOut(_Out):
     plan_id: str | None
     error: str | None
     settings: dict[str, Any]
-    created_at: datetime
-    updated_at: datetime
+    created_at: UtcDatetime
+    updated_at: UtcDatetime
 
 
 class Problem(BaseModel):

@@ -8,7 +8,7 @@ import contextlib
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect, status
 from fastapi.responses import JSONResponse
 
-from gcs.api.deps import Authorized, ServicesDep, get_services
+from gcs.api.deps import ServicesDep, get_services, mutating
 from gcs.api.schemas import JobOut, PlanOut, PlanRequest, Problem
 from gcs.storage.tables import JobRow, PlanRow
 from planner.pipeline import PlannerSettings
@@ -26,14 +26,14 @@ def plan_out(row: PlanRow) -> PlanOut:
 
 @router.post(
     "/scenarios/{scenario_id}/plans",
-    dependencies=Authorized,
     status_code=status.HTTP_201_CREATED,
     response_model=PlanOut,
-    responses={
-        202: {"model": JobOut, "description": "still planning: poll or watch the job"},
-        404: {"model": Problem, "description": "no such scenario"},
-        422: {"model": Problem, "description": "invalid settings"},
-    },
+    **mutating(
+        {
+            202: {"model": JobOut, "description": "still planning: poll or watch the job"},
+            404: {"model": Problem, "description": "no such scenario"},
+        }
+    ),
 )
 async def request_plan(
     scenario_id: str, request: PlanRequest, services: ServicesDep
@@ -82,7 +82,7 @@ def get_plan(plan_id: str, services: ServicesDep) -> PlanOut:
 def list_jobs(
     services: ServicesDep,
     limit: int = Query(default=100, ge=1, le=1000),
-    offset: int = Query(default=0, ge=0),
+    offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[JobOut]:
     return [JobOut.model_validate(row) for row in services.jobs.list(limit, offset)]
 
@@ -95,9 +95,8 @@ def get_job(job_id: str, services: ServicesDep) -> JobOut:
 @router.post(
     "/jobs/{job_id}/cancel",
     tags=["jobs"],
-    dependencies=Authorized,
     status_code=status.HTTP_202_ACCEPTED,
-    responses={404: {"model": Problem}, 409: {"model": Problem, "description": "finished"}},
+    **mutating({404: {"model": Problem}, 409: {"model": Problem, "description": "finished"}}),
 )
 def cancel_job(job_id: str, services: ServicesDep) -> JobOut:
     """Ask a queued or running job to stop; it ends `cancelled` within one iteration."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Query, status
 
-from gcs.api.deps import Authorized, ServicesDep
+from gcs.api.deps import ServicesDep, mutating
 from gcs.api.schemas import Problem, ScenarioOut
 from gcs.storage.tables import ScenarioRow
 from planner.scenario import Scenario
@@ -22,8 +22,7 @@ def _out(row: ScenarioRow) -> ScenarioOut:
 @router.post(
     "",
     status_code=status.HTTP_201_CREATED,
-    dependencies=Authorized,
-    responses={422: {"model": Problem, "description": "the scenario is invalid"}},
+    **mutating(),
 )
 def create_scenario(scenario: Scenario, services: ServicesDep) -> ScenarioOut:
     """Store a scenario (validated: grid limits, cells inside the grid, reachable goals)."""
@@ -35,7 +34,7 @@ def create_scenario(scenario: Scenario, services: ServicesDep) -> ScenarioOut:
 def list_scenarios(
     services: ServicesDep,
     limit: int = Query(default=100, ge=1, le=1000),
-    offset: int = Query(default=0, ge=0),
+    offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[ScenarioOut]:
     return [_out(row) for row in services.scenarios.list(limit, offset)]
 
@@ -48,8 +47,7 @@ def get_scenario(scenario_id: str, services: ServicesDep) -> ScenarioOut:
 @router.delete(
     "/{scenario_id}",
     status_code=status.HTTP_204_NO_CONTENT,
-    dependencies=Authorized,
-    responses=NOT_FOUND,
+    **mutating(NOT_FOUND),
 )
 def delete_scenario(scenario_id: str, services: ServicesDep) -> None:
     """Delete a scenario with its plans and jobs."""
