@@ -94,8 +94,8 @@ def descend(field: NDArray[np.float64], start: Cell, blocked: NDArray[np.bool_])
 def cell_map(cells: Iterable[Cell], shape: tuple[int, int]) -> NDArray[np.bool_]:
     """A boolean map, indexed [x, y], that is True on `cells`."""
     grid = np.zeros(shape, dtype=bool)
-    for cell in cells:
-        grid[cell] = True
+    for x, y in cells:  # unpacked: a list [x, y] as an index would pick whole rows
+        grid[x, y] = True
     return grid
 
 
