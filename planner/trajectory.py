@@ -74,6 +74,16 @@ class Trajectory:
         out[(t < self.times[0]) | (t > self.end_time)] = np.nan
         return out
 
+    def between(self, start: float, end: float) -> Trajectory | None:
+        """The part flown during [start, end], its ends interpolated (None if not airborne
+        then): what is left of a flight after `now`, or what meets an object's time window."""
+        lo, hi = max(start, float(self.times[0])), min(end, self.end_time)
+        if lo > hi:
+            return None
+        inner = self.points[(self.times > lo) & (self.times < hi)]
+        ends = np.column_stack([[lo, hi], self.at([lo, hi])])
+        return Trajectory(np.vstack([ends[:1], inner, ends[1:]]))
+
     def to_json(self) -> list[list[float]]:
         return [
             [round(float(t), 6), round(float(x), 6), round(float(y), 6)] for t, x, y in self.points
