@@ -1,0 +1,187 @@
+"""`mvo-gcs sitl` / `python -m sitl_mock`: start N simulated vehicles and run until SIGINT or
+SIGTERM. Vehicle i (system id i) listens on base-port + 10 i."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import math
+import signal
+import sys
+from pathlib import Path
+
+from .faults import REJECT_POINTS, Faults
+from .flavour import FLAVOURS
+from .geo import offset
+from .mission_store import DEFAULT_CAPACITY
+from .simulator import Simulator
+from .transport import connection_string
+from .vehicle import DEFAULT_HOME, VehicleConfig
+
+Home = tuple[float, float, float]
+PORT_STRIDE = 10
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The `sitl` options (shared by `mvo-gcs sitl` and `python -m sitl_mock`)."""
+    parser.add_argument("--vehicles", type=_positive_int, default=None,
+                        help="number of vehicles, system ids 1..N (default: 1, or one per "
+                             "entry of --homes / UAV of --scenario)")
+    parser.add_argument("--base-port", type=int, default=14550,
+                        help="vehicle i listens on BASE + 10 i (default 14550; 0: ports "
+                             "chosen by the OS, as printed)")
+    parser.add_argument("--transport", choices=("udp", "tcp"), default="udp")
+    parser.add_argument("--bind", default="127.0.0.1", help="address to listen on")
+    parser.add_argument("--autopilot", choices=sorted(FLAVOURS), default="ardupilot",
+                        help="which autopilot to behave like")
+    parser.add_argument("--speedup", type=_positive_float, default=1.0,
+                        help="simulated seconds per wall second")
+    parser.add_argument("--seed", type=int, default=0, help="seed of every random choice")
+    parser.add_argument("--home", type=_home, default=DEFAULT_HOME, metavar="LAT,LON,ALT",
+                        help="home of vehicle 1; the others are placed --spacing metres apart")
+    parser.add_argument("--spacing", type=_positive_float, default=20.0,
+                        help="metres between neighbouring homes on a grid (default 20)")
+    parser.add_argument("--homes", type=Path, metavar="FILE",
+                        help="JSON list of [lat, lon, alt] homes, one per vehicle")
+    parser.add_argument("--scenario", type=Path, metavar="SCENARIO.json",
+                        help="place vehicle i at the start cell of the scenario's i-th UAV")
+    parser.add_argument("--track-log", type=Path, metavar="FILE",
+                        help="write every vehicle's track as JSON lines (10 per sim second)")
+    parser.add_argument("--stream-by-default", action="store_true",
+                        help="stream telemetry without being asked (ArduPilot flavour)")
+    parser.add_argument("--estimate-delay", type=float, default=5.0, metavar="S",
+                        help="simulated seconds until the position estimate allows arming")
+    parser.add_argument("--mission-capacity", type=_positive_int, default=DEFAULT_CAPACITY,
+                        help="most mission items a vehicle accepts")
+    faults = parser.add_argument_group("faults (every vehicle; delays in simulated seconds)")
+    faults.add_argument("--loss-in", type=_fraction, default=0.0,
+                        help="fraction of packets from the ground station lost")
+    faults.add_argument("--loss-out", type=_fraction, default=0.0,
+                        help="fraction of packets to the ground station lost")
+    faults.add_argument("--latency", type=float, default=0.0, metavar="S")
+    faults.add_argument("--jitter", type=float, default=0.0, metavar="S")
+    faults.add_argument("--duplicate", type=_fraction, default=0.0)
+    faults.add_argument("--reorder", type=_fraction, default=0.0)
+    faults.add_argument("--reject-missions", nargs="?", const="last_item", default=None,
+                        choices=REJECT_POINTS,
+                        help="refuse uploads with MAV_MISSION_ERROR at the COUNT or the last "
+                             "item (default last_item)")
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        configs = vehicle_configs(args)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        print(f"sitl: error: {exc}", file=sys.stderr)
+        return 2
+    sim = Simulator(configs, speedup=args.speedup, seed=args.seed, host=args.bind,
+                    stream_by_default=args.stream_by_default, track_log=args.track_log)
+    return asyncio.run(_serve(sim))
+
+
+def vehicle_configs(args: argparse.Namespace) -> list[VehicleConfig]:
+    homes = _homes(args)
+    faults = Faults(
+        loss_in=args.loss_in, loss_out=args.loss_out, latency_s=args.latency,
+        jitter_s=args.jitter, duplicate=args.duplicate, reorder=args.reorder,
+        reject_missions=args.reject_missions is not None,
+        reject_at=args.reject_missions or "last_item",
+    )
+    return [
+        VehicleConfig(sysid=i, port=args.base_port and args.base_port + PORT_STRIDE * i, home=home,
+                      autopilot=args.autopilot, transport=args.transport, faults=faults,
+                      mission_capacity=args.mission_capacity,
+                      estimate_delay_s=args.estimate_delay)
+        for i, home in enumerate(homes, start=1)
+    ]
+
+
+async def _serve(sim: Simulator) -> int:
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(signum, stop.set)
+    await sim.start()
+    try:
+        for sysid in sim.sysids:
+            config = sim.vehicle(sysid).config
+            link = connection_string(config.transport, sim.host, sim.port(sysid))
+            print(f"vehicle {sysid}: {link}", flush=True)
+        await stop.wait()
+    finally:
+        await sim.stop()
+    return 0
+
+
+def _homes(args: argparse.Namespace) -> list[Home]:
+    if args.homes and args.scenario:
+        raise ValueError("give --homes or --scenario, not both")
+    if args.homes:
+        homes = _homes_file(args.homes)
+    elif args.scenario:
+        homes = scenario_homes(args.scenario)
+    else:
+        return grid_homes(args.home, args.vehicles or 1, args.spacing)
+    count = args.vehicles or len(homes)
+    if count > len(homes):
+        raise ValueError(f"{count} vehicles but only {len(homes)} homes")
+    return homes[:count]
+
+
+def grid_homes(first: Home, count: int, spacing: float) -> list[Home]:
+    """Homes on a square grid, `spacing` metres apart, the first at `first`."""
+    columns = math.ceil(math.sqrt(count))
+    lat, lon, alt = first
+    return [(*offset(lat, lon, alt, spacing * (i % columns), spacing * (i // columns)), alt)
+            for i in range(count)]
+
+
+def scenario_homes(path: Path) -> list[Home]:
+    """The start cells of a scenario's UAVs: cell (x, y) is x cells east, y cells north."""
+    scenario = json.loads(path.read_text())
+    cell = float(scenario["grid"]["cell_size_m"])
+    origin = scenario["origin"]
+    lat, lon, alt = float(origin["lat"]), float(origin["lon"]), float(origin["alt_m"])
+    homes = []
+    for uav in scenario["uavs"]:
+        x, y = uav["start"]
+        homes.append((*offset(lat, lon, alt, x * cell, y * cell), alt))
+    return homes
+
+
+def _homes_file(path: Path) -> list[Home]:
+    entries = json.loads(path.read_text())
+    if not isinstance(entries, list) or not all(
+            isinstance(e, list) and len(e) == 3 for e in entries):
+        raise ValueError(f"{path}: expected a JSON list of [lat, lon, alt]")
+    return [(float(lat), float(lon), float(alt)) for lat, lon, alt in entries]
+
+
+def _home(text: str) -> Home:
+    try:
+        lat, lon, alt = (float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LAT,LON,ALT, got {text!r}") from None
+    return lat, lon, alt
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {value}")
+    return value
+
+
+def _fraction(text: str) -> float:
+    value = float(text)
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be a fraction in [0, 1], got {value}")
+    return value

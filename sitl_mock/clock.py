@@ -1,0 +1,69 @@
+"""Simulated time: fixed physics steps, with the wall clock deciding only how many to run."""
+
+from __future__ import annotations
+
+import time
+
+DEFAULT_STEP_S = 0.02
+MAX_STEPS_PER_TICK = 200
+"""Bound on catching up after a stall, so a slow machine slips rather than spirals."""
+
+
+class SimClock:
+    """Counts fixed steps; `steps_due` maps elapsed wall time times the speed-up to whole steps."""
+
+    def __init__(self, speedup: float, step_s: float = DEFAULT_STEP_S) -> None:
+        if speedup <= 0:
+            raise ValueError(f"speedup must be positive, got {speedup}")
+        if step_s <= 0:
+            raise ValueError(f"step must be positive, got {step_s}")
+        self.speedup = speedup
+        self.step_s = step_s
+        self.steps = 0
+        self._wall_start: float | None = None
+        self._slipped_steps = 0
+
+    @property
+    def now(self) -> float:
+        """Simulated seconds since start."""
+        return self.steps * self.step_s
+
+    def start(self, wall_now: float | None = None) -> None:
+        self._wall_start = time.monotonic() if wall_now is None else wall_now
+        self._slipped_steps = 0
+
+    def steps_due(self, wall_now: float | None = None) -> int:
+        """How many steps to run now to keep simulated time at speedup x wall time."""
+        if self._wall_start is None:
+            self.start(wall_now)
+        wall = time.monotonic() if wall_now is None else wall_now
+        target = int((wall - self._wall_start) * self.speedup / self.step_s) - self._slipped_steps
+        due = max(0, target - self.steps)
+        if due > MAX_STEPS_PER_TICK:
+            self._slipped_steps += due - MAX_STEPS_PER_TICK
+            due = MAX_STEPS_PER_TICK
+        return due
+
+    def wall_until_next_step(self) -> float:
+        """Real seconds until the next step falls due (0 if already due)."""
+        return self.step_s / self.speedup
+
+    def advance(self) -> float:
+        self.steps += 1
+        return self.now
+
+
+class Deadline:
+    """A point in simulated time that can be armed, cleared and tested."""
+
+    def __init__(self) -> None:
+        self.at: float | None = None
+
+    def set(self, at: float) -> None:
+        self.at = at
+
+    def clear(self) -> None:
+        self.at = None
+
+    def passed(self, now: float) -> bool:
+        return self.at is not None and now >= self.at

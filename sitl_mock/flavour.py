@@ -1,0 +1,107 @@
+"""What differs between an ArduCopter and a PX4 vehicle on the wire, in one record each."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from .codec import mavlink
+from .kinematics import NavLimits
+from .modes import ARDUCOPTER_MODES, PX4_MODES, FlightMode, ModeTable
+from .params import (
+    ARDUCOPTER_DEFAULTS,
+    PX4_DEFAULTS,
+    ParameterSet,
+    arducopter_limits,
+    px4_limits,
+)
+
+
+@dataclass(frozen=True)
+class Flavour:
+    name: str
+    autopilot: int
+    """HEARTBEAT.autopilot (MAV_AUTOPILOT)."""
+    modes: ModeTable
+    boot_mode: FlightMode
+    home_is_item_zero: bool
+    """ArduPilot keeps home as mission item 0."""
+    item_request_id: int
+    """How the vehicle asks for an item on upload: MISSION_REQUEST (40) or _INT (51)."""
+    rerequest_s: float
+    upload_timeout_s: float
+    streams_by_default: bool
+    repeats_item_reached: bool
+    needs_mission_start: bool
+    """ArduCopter on the ground in AUTO waits for MISSION_START before it climbs."""
+    arm_in_auto: bool
+    arm_rejected_result: int
+    sysid_param: str
+    param_defaults: tuple[tuple[str, float, int], ...]
+    params_bytewise: bool
+    limits: Callable[[ParameterSet], NavLimits]
+    rtl_alt_m: Callable[[ParameterSet], float]
+    takeoff_mode: FlightMode
+    """Mode a NAV_TAKEOFF command leaves the vehicle in (GUIDED; PX4 TAKEOFF)."""
+    after_takeoff_mode: FlightMode
+    mission_end_mode: FlightMode
+    boot_status_s: float
+    """Seconds in MAV_STATE_BOOT after start."""
+
+    def new_params(self, sysid: int) -> ParameterSet:
+        params = ParameterSet(self.param_defaults, bytewise=self.params_bytewise)
+        params.set(self.sysid_param, sysid)
+        return params
+
+
+ARDUPILOT = Flavour(
+    name="ardupilot",
+    autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
+    modes=ARDUCOPTER_MODES,
+    boot_mode=FlightMode.STABILIZE,
+    home_is_item_zero=True,
+    item_request_id=mavlink.MAVLINK_MSG_ID_MISSION_REQUEST,
+    rerequest_s=1.0,
+    upload_timeout_s=8.0,
+    streams_by_default=False,
+    repeats_item_reached=False,
+    needs_mission_start=True,
+    arm_in_auto=False,
+    arm_rejected_result=mavlink.MAV_RESULT_FAILED,
+    sysid_param="SYSID_THISMAV",
+    param_defaults=ARDUCOPTER_DEFAULTS,
+    params_bytewise=False,
+    limits=arducopter_limits,
+    rtl_alt_m=lambda params: params.get("RTL_ALT") / 100.0,
+    takeoff_mode=FlightMode.GUIDED,
+    after_takeoff_mode=FlightMode.GUIDED,
+    mission_end_mode=FlightMode.AUTO,
+    boot_status_s=2.0,
+)
+
+PX4 = Flavour(
+    name="px4",
+    autopilot=mavlink.MAV_AUTOPILOT_PX4,
+    modes=PX4_MODES,
+    boot_mode=FlightMode.POSCTL,
+    home_is_item_zero=False,
+    item_request_id=mavlink.MAVLINK_MSG_ID_MISSION_REQUEST_INT,
+    rerequest_s=0.25,
+    upload_timeout_s=5.0,
+    streams_by_default=True,
+    repeats_item_reached=True,
+    needs_mission_start=False,
+    arm_in_auto=True,
+    arm_rejected_result=mavlink.MAV_RESULT_TEMPORARILY_REJECTED,
+    sysid_param="MAV_SYS_ID",
+    param_defaults=PX4_DEFAULTS,
+    params_bytewise=True,
+    limits=px4_limits,
+    rtl_alt_m=lambda params: params.get("RTL_RETURN_ALT"),
+    takeoff_mode=FlightMode.TAKEOFF,
+    after_takeoff_mode=FlightMode.LOITER,
+    mission_end_mode=FlightMode.LOITER,
+    boot_status_s=0.0,
+)
+
+FLAVOURS = {flavour.name: flavour for flavour in (ARDUPILOT, PX4)}

@@ -1,0 +1,163 @@
+"""Builders for the messages a vehicle sends, from a `VehicleState`."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from .codec import Message, mavlink
+from .flavour import Flavour
+from .snapshot import VehicleState
+
+S = mavlink
+SENSORS_PRESENT = (
+    S.MAV_SYS_STATUS_SENSOR_3D_GYRO | S.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | S.MAV_SYS_STATUS_SENSOR_3D_MAG | S.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | S.MAV_SYS_STATUS_SENSOR_GPS | S.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+    | S.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION | S.MAV_SYS_STATUS_SENSOR_YAW_POSITION
+    | S.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL | S.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+    | S.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | S.MAV_SYS_STATUS_AHRS
+    | S.MAV_SYS_STATUS_SENSOR_BATTERY | S.MAV_SYS_STATUS_PREARM_CHECK
+)
+NEEDS_ESTIMATE = S.MAV_SYS_STATUS_SENSOR_GPS | S.MAV_SYS_STATUS_PREARM_CHECK
+"""Health bits that turn true only once the position estimate is ready."""
+
+CAPABILITIES = (
+    S.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | S.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | S.MAV_PROTOCOL_CAPABILITY_MISSION_INT | S.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | S.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+    | S.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | S.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    | S.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
+)
+SATELLITES = 10
+BATTERY_MV = 12600
+
+
+def heartbeat(state: VehicleState, flavour: Flavour) -> Message:
+    return S.MAVLink_heartbeat_message(
+        S.MAV_TYPE_QUADROTOR, flavour.autopilot, state.base_mode, state.custom_mode,
+        state.system_status, 3,
+    )
+
+
+def sys_status(state: VehicleState, flavour: Flavour) -> Message:
+    health = SENSORS_PRESENT if state.estimate_ready else SENSORS_PRESENT & ~NEEDS_ESTIMATE
+    return S.MAVLink_sys_status_message(
+        SENSORS_PRESENT, SENSORS_PRESENT, health, 250, BATTERY_MV, 1200 if state.armed else 0,
+        95, 0, 0, 0, 0, 0, 0,
+    )
+
+
+def gps_raw_int(state: VehicleState, flavour: Flavour) -> Message:
+    north, east, _ = state.velocity_ned
+    return S.MAVLink_gps_raw_int_message(
+        _usec(state), S.GPS_FIX_TYPE_RTK_FIXED, _e7(state.lat), _e7(state.lon),
+        round(state.alt_amsl * 1000), 121, 65535, round(state.ground_speed * 100),
+        _cdeg(math.degrees(math.atan2(east, north))), SATELLITES,
+    )
+
+
+def global_position_int(state: VehicleState, flavour: Flavour) -> Message:
+    north, east, down = state.velocity_ned
+    known = state.estimate_ready
+    return S.MAVLink_global_position_int_message(
+        _msec(state), _e7(state.lat) if known else 0, _e7(state.lon) if known else 0,
+        round(state.alt_amsl * 1000) if known else 0, round(state.alt * 1000),
+        round(north * 100), round(east * 100), round(down * 100), _cdeg(state.heading_deg),
+    )
+
+
+def attitude(state: VehicleState, flavour: Flavour) -> Message:
+    return S.MAVLink_attitude_message(
+        _msec(state), 0.0, 0.0, math.radians(_wrap180(state.heading_deg)), 0.0, 0.0, 0.0)
+
+
+def vfr_hud(state: VehicleState, flavour: Flavour) -> Message:
+    return S.MAVLink_vfr_hud_message(
+        state.ground_speed, state.ground_speed, round(state.heading_deg) % 360,
+        50 if state.armed else 0, state.alt_amsl, -state.velocity_ned[2],
+    )
+
+
+def home_position(state: VehicleState, flavour: Flavour) -> Message:
+    lat, lon, alt = state.home
+    return S.MAVLink_home_position_message(
+        _e7(lat), _e7(lon), round(alt * 1000), 0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0],
+        0.0, 0.0, 0.0, _usec(state),
+    )
+
+
+def extended_sys_state(state: VehicleState, flavour: Flavour) -> Message:
+    return S.MAVLink_extended_sys_state_message(S.MAV_VTOL_STATE_UNDEFINED, state.landed_state)
+
+
+def mission_current(state: VehicleState, flavour: Flavour) -> Message:
+    return S.MAVLink_mission_current_message(
+        state.mission_seq, state.mission_total, state.mission_state, 0)
+
+
+def battery_status(state: VehicleState, flavour: Flavour) -> Message:
+    cells = [4200, 4200, 4200] + [65535] * 7
+    return S.MAVLink_battery_status_message(
+        0, S.MAV_BATTERY_FUNCTION_ALL, S.MAV_BATTERY_TYPE_LIPO, 2500, cells,
+        1200 if state.armed else 0, -1, -1, 95)
+
+
+def system_time(state: VehicleState, flavour: Flavour) -> Message:
+    return S.MAVLink_system_time_message(0, _msec(state))
+
+
+BUILDERS: dict[int, Callable[[VehicleState, Flavour], Message]] = {
+    S.MAVLINK_MSG_ID_HEARTBEAT: heartbeat,
+    S.MAVLINK_MSG_ID_SYS_STATUS: sys_status,
+    S.MAVLINK_MSG_ID_GPS_RAW_INT: gps_raw_int,
+    S.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: global_position_int,
+    S.MAVLINK_MSG_ID_ATTITUDE: attitude,
+    S.MAVLINK_MSG_ID_VFR_HUD: vfr_hud,
+    S.MAVLINK_MSG_ID_HOME_POSITION: home_position,
+    S.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: extended_sys_state,
+    S.MAVLINK_MSG_ID_MISSION_CURRENT: mission_current,
+    S.MAVLINK_MSG_ID_BATTERY_STATUS: battery_status,
+    S.MAVLINK_MSG_ID_SYSTEM_TIME: system_time,
+}
+
+
+def autopilot_version(sysid: int, flavour: Flavour) -> Message:
+    if flavour.name == "px4":
+        version = (1 << 24) | (15 << 16) | (0 << 8) | S.FIRMWARE_VERSION_TYPE_OFFICIAL
+        capabilities = CAPABILITIES | S.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+    else:
+        version = (4 << 24) | (7 << 16) | (0 << 8) | S.FIRMWARE_VERSION_TYPE_DEV
+        capabilities = CAPABILITIES
+    return S.MAVLink_autopilot_version_message(
+        capabilities, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0x1209, 0x5741,
+        0x4D4F434B00000000 + sysid, [0] * 18,
+    )
+
+
+def statustext(severity: int, text: str) -> Message:
+    return S.MAVLink_statustext_message(severity, text.encode()[:50], 0, 0)
+
+
+def command_ack(command: int, result: int, target_system: int, target_component: int) -> Message:
+    return S.MAVLink_command_ack_message(command, result, 0, 0, target_system, target_component)
+
+
+def _e7(degrees: float) -> int:
+    return round(degrees * 1e7)
+
+
+def _cdeg(degrees: float) -> int:
+    return round(degrees % 360 * 100) % 36000
+
+
+def _wrap180(degrees: float) -> float:
+    return (degrees + 180.0) % 360.0 - 180.0
+
+
+def _msec(state: VehicleState) -> int:
+    return round(state.t * 1000) & 0xFFFFFFFF
+
+
+def _usec(state: VehicleState) -> int:
+    return round(state.t * 1e6)

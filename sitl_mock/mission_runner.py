@@ -1,0 +1,257 @@
+"""Flies the stored mission in AUTO: one manoeuvre per navigation item, DO items at once.
+
+Reports progress the way an autopilot does (MISSION_CURRENT on every change,
+MISSION_ITEM_REACHED for each navigation item) through `MissionEvents`.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Callable
+from typing import Protocol
+
+from .codec import mavlink
+from .kinematics import Body, NavLimits
+from .manoeuvres import Climb, FlyTo, Hold, Land, Manoeuvre, Sequence, land_at, return_home
+from .mission_item import AMSL_FRAMES, GLOBAL_FRAMES, MissionItem
+from .mission_store import MissionStore
+
+NAV_WAYPOINT = mavlink.MAV_CMD_NAV_WAYPOINT
+NAV_LOITER_UNLIM = mavlink.MAV_CMD_NAV_LOITER_UNLIM
+NAV_LOITER_TIME = mavlink.MAV_CMD_NAV_LOITER_TIME
+NAV_RTL = mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH
+NAV_LAND = mavlink.MAV_CMD_NAV_LAND
+NAV_TAKEOFF = mavlink.MAV_CMD_NAV_TAKEOFF
+DO_CHANGE_SPEED = mavlink.MAV_CMD_DO_CHANGE_SPEED
+NAV_COMMANDS = frozenset({NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME, NAV_RTL, NAV_LAND,
+                          NAV_TAKEOFF})
+PASS_THROUGH_TARGETS = frozenset({NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME})
+
+
+class MissionState(enum.IntEnum):
+    """MISSION_CURRENT.mission_state (MISSION_STATE enum)."""
+
+    NO_MISSION = 1
+    NOT_STARTED = 2
+    ACTIVE = 3
+    PAUSED = 4
+    COMPLETE = 5
+
+
+class MissionEvents(Protocol):
+    def item_reached(self, seq: int) -> None: ...
+
+    def current_changed(self) -> None: ...
+
+    def speed_changed(self, speed: float) -> None: ...
+
+
+class ItemPlacer:
+    """Turns an item's coordinates into the fleet's local metres and home-relative altitude."""
+
+    def __init__(self, to_local: Callable[[float, float], tuple[float, float]],
+                 home_alt_amsl: Callable[[], float]) -> None:
+        self._to_local = to_local
+        self._home_alt = home_alt_amsl
+
+    def position(self, item: MissionItem, body: Body) -> tuple[float, float]:
+        if item.has_position:
+            return self._to_local(item.lat, item.lon)
+        east, north, _ = body.position
+        return east, north
+
+    def altitude(self, item: MissionItem, body: Body) -> float:
+        if item.frame not in GLOBAL_FRAMES:
+            return body.alt
+        if item.frame in AMSL_FRAMES:
+            return max(0.0, item.z - self._home_alt())
+        return max(0.0, item.z)
+
+
+class MissionRunner:
+    """Executes items from `store.current` on; the flight controller calls `update` in AUTO."""
+
+    def __init__(self, store: MissionStore, body: Body, placer: ItemPlacer,
+                 limits: Callable[[], NavLimits], home_en: Callable[[], tuple[float, float]],
+                 rtl_alt: Callable[[], float], events: MissionEvents,
+                 takeoff_alt_if_missing: float | None = None) -> None:
+        self.store = store
+        self._body = body
+        self._placer = placer
+        self._limits = limits
+        self._home_en = home_en
+        self._rtl_alt = rtl_alt
+        self._events = events
+        self._implicit_takeoff = takeoff_alt_if_missing
+        self._running = False
+        self._paused = False
+        self._complete = False
+        self._manoeuvre: Manoeuvre | None = None
+
+    @property
+    def state(self) -> MissionState:
+        if self.store.total == 0:
+            return MissionState.NO_MISSION
+        if self._complete:
+            return MissionState.COMPLETE
+        if self._paused:
+            return MissionState.PAUSED
+        return MissionState.ACTIVE if self._running else MissionState.NOT_STARTED
+
+    @property
+    def running(self) -> bool:
+        return self._running
+
+    @property
+    def phase(self) -> int | None:
+        return None if self._manoeuvre is None else self._manoeuvre.phase
+
+    def starts_with_takeoff(self) -> bool:
+        items = self.store.items()
+        first = self.store.first_item
+        return len(items) > first and items[first].command == NAV_TAKEOFF
+
+    def start(self, now: float) -> None:
+        """Run from the current item (a completed mission starts over)."""
+        if self._complete:
+            self.store.set_current(self.store.first_item)
+            self._complete = False
+        self._running, self._paused = True, False
+        self._begin_item(now)
+
+    def stop(self) -> None:
+        """Leave AUTO: remember the current item, drop its manoeuvre."""
+        self._running, self._paused, self._manoeuvre = False, False, None
+
+    def reset(self) -> None:
+        """The mission changed underneath: start over when next started."""
+        self._complete = False
+        self._manoeuvre = None
+
+    def pause(self, now: float) -> None:
+        self._paused = True
+        self._manoeuvre = Hold()
+        self._manoeuvre.start(self._body, now)
+
+    def resume(self, now: float) -> None:
+        self._paused = False
+        self._begin_item(now)
+
+    def update(self, now: float) -> None:
+        if not self._running or self._complete:
+            return
+        if self._manoeuvre is None:
+            self._begin_item(now)
+            return
+        if self._paused or not self._manoeuvre.update(self._body, now):
+            return
+        self._finish_item(now)
+
+    def _begin_item(self, now: float) -> None:
+        """Start the current item; DO items and satisfied items complete immediately."""
+        items = self.store.items()
+        while self.store.current < len(items):
+            item = items[self.store.current]
+            manoeuvre = self._manoeuvre_for(item, items)
+            if manoeuvre is not None:
+                self._manoeuvre = manoeuvre
+                manoeuvre.start(self._body, now)
+                self._events.current_changed()
+                return
+            self._complete_item(item)
+            if not self._advance(items):
+                return
+
+    def _finish_item(self, now: float) -> None:
+        items = self.store.items()
+        self._complete_item(items[self.store.current])
+        self._manoeuvre = None
+        if self._advance(items):
+            self._begin_item(now)
+
+    def _complete_item(self, item: MissionItem) -> None:
+        if item.command in NAV_COMMANDS:
+            self._events.item_reached(item.seq)
+
+    def _advance(self, items: list[MissionItem]) -> bool:
+        if self.store.current + 1 >= len(items):
+            self._complete = True
+            self._manoeuvre = Hold() if self._body.alt > 0 else None
+            if self._manoeuvre is not None:
+                self._manoeuvre.start(self._body, 0.0)
+            self._events.current_changed()
+            return False
+        self.store.current += 1
+        return True
+
+    def _manoeuvre_for(self, item: MissionItem, items: list[MissionItem]) -> Manoeuvre | None:
+        body, limits = self._body, self._limits()
+        command = item.command
+        if command == DO_CHANGE_SPEED:
+            if item.param2 > 0:
+                self._events.speed_changed(item.param2)
+            return None
+        if command == NAV_TAKEOFF:
+            return self._takeoff(self._placer.altitude(item, body))
+        east, north = self._placer.position(item, body)
+        alt = self._placer.altitude(item, body)
+        climb_first = self._implicit_climb(alt)
+        if command == NAV_LAND:
+            landing = land_at(east, north, body, limits) if item.has_position else Land(limits)
+            return landing
+        if command == NAV_RTL:
+            return return_home(body, self._home_en(), self._rtl_alt(), limits)
+        own_radius = command == NAV_WAYPOINT and item.param2 > 0
+        radius = item.param2 if own_radius else limits.accept_radius
+        hold_s = item.param1 if command in (NAV_WAYPOINT, NAV_LOITER_TIME) else 0.0
+        exit_speed = 0.0 if hold_s > 0 else self._corner_speed(item, items, east, north, radius)
+        fly: Manoeuvre = FlyTo(east, north, alt, radius, exit_speed, hold_s)
+        if command == NAV_LOITER_UNLIM:
+            fly = Sequence(fly, Hold())
+        return fly if climb_first is None else Sequence(climb_first, fly)
+
+    def _takeoff(self, alt: float) -> Manoeuvre | None:
+        if self._body.alt >= alt - 0.5:
+            return None  # already there: a take-off item completes at once
+        return Climb(alt)
+
+    def _implicit_climb(self, alt: float) -> Manoeuvre | None:
+        """PX4 takes off by itself when a mission starts on the ground."""
+        if self._implicit_takeoff is None or self._body.alt > 0.5:
+            return None
+        return Climb(max(self._implicit_takeoff, alt))
+
+    def _corner_speed(self, item: MissionItem, items: list[MissionItem], east: float,
+                      north: float, radius: float) -> float:
+        """Speed to carry through this waypoint: full for a straight line, less for a sharp
+        turn (the turn at the acceleration limit fits inside the acceptance radius), zero if
+        the vehicle must stop (end of mission, landing, hold)."""
+        following = _next_nav(items, item.seq)
+        if following is None or following.command not in PASS_THROUGH_TARGETS:
+            return 0.0
+        if not following.has_position:
+            return 0.0
+        limits = self._limits()
+        next_east, next_north = self._placer.position(following, self._body)
+        here_east, here_north, _ = self._body.position
+        turn = _turn_angle((east - here_east, north - here_north),
+                           (next_east - east, next_north - north))
+        if turn is None:
+            return 0.0
+        if turn < 1e-3:
+            return limits.cruise_speed
+        return min(limits.cruise_speed, math.sqrt(limits.accel * radius / math.tan(turn / 2)))
+
+
+def _next_nav(items: list[MissionItem], seq: int) -> MissionItem | None:
+    return next((item for item in items[seq + 1:] if item.command in NAV_COMMANDS), None)
+
+
+def _turn_angle(leg_in: tuple[float, float], leg_out: tuple[float, float]) -> float | None:
+    """Heading change between two legs in radians, None if a leg has no length."""
+    len_in, len_out = math.hypot(*leg_in), math.hypot(*leg_out)
+    if len_in < 1e-6 or len_out < 1e-6:
+        return None
+    cos = (leg_in[0] * leg_out[0] + leg_in[1] * leg_out[1]) / (len_in * len_out)
+    return math.acos(max(-1.0, min(1.0, cos)))

@@ -1,0 +1,295 @@
+"""The vehicle side of the MAVLink mission protocol: upload, download, clear, set current.
+
+Uploads are staged and swapped in only when complete, so a failed, timed-out or
+interrupted upload leaves the previous mission intact. Timing runs on simulated time
+through `tick`. Messages go out through an `Outbox`; nothing here touches a socket.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import ClassVar, Protocol
+
+from .codec import Message, Sender, mavlink
+from .flavour import Flavour
+from .mission_item import SUPPORTED_FRAMES, MissionItem
+
+MISSION, FENCE, RALLY, ALL = (mavlink.MAV_MISSION_TYPE_MISSION, mavlink.MAV_MISSION_TYPE_FENCE,
+                              mavlink.MAV_MISSION_TYPE_RALLY, mavlink.MAV_MISSION_TYPE_ALL)
+
+SUPPORTED_COMMANDS: dict[int, frozenset[int]] = {
+    MISSION: frozenset({
+        mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+        mavlink.MAV_CMD_NAV_LOITER_TIME, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+        mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_DO_CHANGE_SPEED,
+    }),
+    FENCE: frozenset({
+        mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+        mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+        mavlink.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION, mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
+    }),
+    RALLY: frozenset({mavlink.MAV_CMD_NAV_RALLY_POINT}),
+}
+
+DEFAULT_CAPACITY = 700
+
+
+class Outbox(Protocol):
+    def send(self, msg: Message) -> None: ...
+
+    def say(self, severity: int, text: str) -> None: ...
+
+
+@dataclass
+class _Upload:
+    sender: Sender
+    mission_type: int
+    count: int
+    staged: list[MissionItem] = field(default_factory=list)
+    last_heard: float = 0.0
+    last_request: float = 0.0
+
+    @property
+    def expected(self) -> int:
+        return len(self.staged)
+
+
+@dataclass(frozen=True)
+class _Completed:
+    """The last finished upload, so a re-sent final item (lost ACK) can be re-acknowledged."""
+
+    sender: Sender
+    mission_type: int
+    last_item: MissionItem
+
+
+class MissionStore:
+    """Mission, fence and rally lists and the transfer state machine over them."""
+
+    def __init__(self, flavour: Flavour, out: Outbox, home_item: Callable[[], MissionItem],
+                 capacity: int = DEFAULT_CAPACITY) -> None:
+        self.flavour = flavour
+        self.capacity = capacity
+        self.reject_at: str | None = None
+        """Fault: "count" or "last_item" makes uploads fail there with MAV_MISSION_ERROR."""
+        self.on_mission_changed: Callable[[], None] = lambda: None
+        self.on_current_changed: Callable[[], None] = lambda: None
+        self._out = out
+        self._home_item = home_item
+        self._lists: dict[int, list[MissionItem]] = {MISSION: [], FENCE: [], RALLY: []}
+        self._upload: _Upload | None = None
+        self._completed: _Completed | None = None
+        self.current = self.first_item
+
+    # -- what the vehicle holds -------------------------------------------------------------
+
+    @property
+    def first_item(self) -> int:
+        """Index of the first flyable item (1 after ArduPilot's home item)."""
+        return 1 if self.flavour.home_is_item_zero else 0
+
+    def items(self, mission_type: int = MISSION) -> list[MissionItem]:
+        """The stored list as a download returns it (ArduPilot: current home as item 0)."""
+        stored = self._lists[mission_type]
+        if mission_type == MISSION and self.flavour.home_is_item_zero:
+            return [self._home_item(), *stored[1:]]
+        return list(stored)
+
+    @property
+    def total(self) -> int:
+        """Flyable items (MISSION_CURRENT.total excludes ArduPilot's home)."""
+        return max(0, len(self._lists[MISSION]) - self.first_item)
+
+    @property
+    def uploading(self) -> bool:
+        return self._upload is not None
+
+    def set_current(self, seq: int) -> bool:
+        if not self.first_item <= seq < len(self._lists[MISSION]):
+            return False
+        self.current = seq
+        return True
+
+    def load(self, items: list[MissionItem], mission_type: int = MISSION) -> None:
+        """Replace a list directly, as if uploaded (for tests and scripted set-ups)."""
+        self._replace(mission_type, [item.with_seq(seq) for seq, item in enumerate(items)])
+
+    def reset(self) -> None:
+        """Forget everything (a reboot)."""
+        for items in self._lists.values():
+            items.clear()
+        self._upload = None
+        self._completed = None
+        self.current = self.first_item
+        self.on_mission_changed()
+
+    # -- the protocol -----------------------------------------------------------------------
+
+    def handle(self, msg: Message, sender: Sender, now: float) -> None:
+        handler = self._handlers.get(msg.get_type())
+        if handler is not None:
+            handler(self, msg, sender, now)
+
+    def tick(self, now: float) -> None:
+        """Re-request a missing item, or give up after the flavour's timeout."""
+        upload = self._upload
+        if upload is None:
+            return
+        if now - upload.last_heard >= self.flavour.upload_timeout_s:
+            self._upload = None
+            self._ack(upload.sender, upload.mission_type, mavlink.MAV_MISSION_OPERATION_CANCELLED)
+            self._out.say(mavlink.MAV_SEVERITY_WARNING, "Mission upload timeout")
+        elif now - upload.last_request >= self.flavour.rerequest_s:
+            self._request(upload, now)
+
+    def _on_count(self, msg: Message, sender: Sender, now: float) -> None:
+        mission_type = msg.mission_type
+        if mission_type not in self._lists:
+            self._ack(sender, mission_type, mavlink.MAV_MISSION_UNSUPPORTED)
+            return
+        if self._upload is not None:
+            if self._upload.sender != sender:
+                self._ack(sender, mission_type, mavlink.MAV_MISSION_DENIED)
+                return
+            self._upload = None  # the same GCS restarts its upload
+        if self.reject_at == "count":
+            self._ack(sender, mission_type, mavlink.MAV_MISSION_ERROR)
+        elif msg.count > self.capacity:
+            self._ack(sender, mission_type, mavlink.MAV_MISSION_NO_SPACE)
+        elif msg.count == 0:
+            self._replace(mission_type, [])
+            self._ack(sender, mission_type, mavlink.MAV_MISSION_ACCEPTED)
+        else:
+            self._upload = _Upload(sender, mission_type, msg.count, last_heard=now)
+            self._request(self._upload, now)
+
+    def _on_item(self, msg: Message, sender: Sender, now: float) -> None:
+        upload = self._upload
+        mission_type = msg.mission_type
+        if upload is None:
+            self._answer_stray_item(MissionItem.from_message(msg), sender)
+            return
+        if upload.sender != sender or upload.mission_type != mission_type:
+            self._ack(sender, mission_type, mavlink.MAV_MISSION_DENIED)
+            return
+        if msg.seq != upload.expected:
+            self._ack(sender, mission_type, mavlink.MAV_MISSION_INVALID_SEQUENCE)
+            return
+        item = MissionItem.from_message(msg)
+        problem = self._problem_with(item, upload)
+        if problem is not None:
+            self._upload = None
+            self._ack(sender, mission_type, problem)
+            return
+        upload.staged.append(item)
+        upload.last_heard = now
+        if upload.expected < upload.count:
+            self._request(upload, now)
+        else:
+            self._finish(upload)
+
+    def _answer_stray_item(self, item: MissionItem, sender: Sender) -> None:
+        done = self._completed
+        if (done is not None and done.sender == sender and done.mission_type == item.mission_type
+                and done.last_item == item):
+            self._ack(sender, item.mission_type, mavlink.MAV_MISSION_ACCEPTED)
+        else:
+            self._ack(sender, item.mission_type, mavlink.MAV_MISSION_ERROR)
+
+    def _problem_with(self, item: MissionItem, upload: _Upload) -> int | None:
+        """The MAV_MISSION_RESULT that rejects this item, or None."""
+        if upload.mission_type == MISSION and item.seq < self.first_item:
+            return None  # ArduPilot overwrites item 0 with home
+        if item.frame not in SUPPORTED_FRAMES:
+            return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
+        if item.command not in SUPPORTED_COMMANDS[upload.mission_type]:
+            return mavlink.MAV_MISSION_UNSUPPORTED
+        return None
+
+    def _finish(self, upload: _Upload) -> None:
+        self._upload = None
+        if self.reject_at == "last_item":
+            self._ack(upload.sender, upload.mission_type, mavlink.MAV_MISSION_ERROR)
+            return
+        self._replace(upload.mission_type, upload.staged)
+        self._completed = _Completed(upload.sender, upload.mission_type, upload.staged[-1])
+        self._ack(upload.sender, upload.mission_type, mavlink.MAV_MISSION_ACCEPTED)
+        if upload.mission_type == MISSION:
+            self._out.say(mavlink.MAV_SEVERITY_INFO, "Flight plan received")
+
+    def _replace(self, mission_type: int, items: list[MissionItem]) -> None:
+        if mission_type == MISSION and items and self.flavour.home_is_item_zero:
+            items = [self._home_item(), *items[1:]]
+        self._lists[mission_type] = list(items)
+        if mission_type == MISSION:
+            self.current = self.first_item
+            self.on_mission_changed()
+
+    def _on_request_list(self, msg: Message, sender: Sender, now: float) -> None:
+        if msg.mission_type not in self._lists:
+            self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_UNSUPPORTED)
+        elif self._upload is not None:
+            self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_DENIED)
+        else:
+            count = len(self.items(msg.mission_type))
+            self._out.send(mavlink.MAVLink_mission_count_message(
+                sender.sysid, sender.compid, count, msg.mission_type))
+
+    def _on_request(self, msg: Message, sender: Sender, now: float) -> None:
+        if msg.mission_type not in self._lists:
+            self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_UNSUPPORTED)
+            return
+        items = self.items(msg.mission_type)
+        if not 0 <= msg.seq < len(items):
+            self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_INVALID_SEQUENCE)
+            return
+        item = items[msg.seq]
+        if msg.get_type() == "MISSION_REQUEST_INT":
+            self._out.send(item.to_item_int(sender.sysid, sender.compid))
+        else:
+            self._out.send(item.to_item(sender.sysid, sender.compid))
+
+    def _on_clear_all(self, msg: Message, sender: Sender, now: float) -> None:
+        if self._upload is not None:
+            self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_DENIED)
+            return
+        if msg.mission_type != ALL and msg.mission_type not in self._lists:
+            self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_UNSUPPORTED)
+            return
+        for mission_type in self._lists:
+            if msg.mission_type in (ALL, mission_type):
+                self._replace(mission_type, [])
+        self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_ACCEPTED)
+
+    def _on_set_current(self, msg: Message, sender: Sender, now: float) -> None:
+        if self.set_current(msg.seq):
+            self.on_current_changed()
+
+    _handlers: ClassVar[dict[str, Callable[[MissionStore, Message, Sender, float], None]]] = {
+        "MISSION_COUNT": _on_count,
+        "MISSION_ITEM_INT": _on_item,
+        "MISSION_ITEM": _on_item,
+        "MISSION_REQUEST_LIST": _on_request_list,
+        "MISSION_REQUEST_INT": _on_request,
+        "MISSION_REQUEST": _on_request,
+        "MISSION_CLEAR_ALL": _on_clear_all,
+        "MISSION_SET_CURRENT": _on_set_current,
+    }
+
+    # -- replies ----------------------------------------------------------------------------
+
+    def _request(self, upload: _Upload, now: float) -> None:
+        upload.last_request = now
+        target = upload.sender
+        if self.flavour.item_request_id == mavlink.MAVLINK_MSG_ID_MISSION_REQUEST:
+            msg = mavlink.MAVLink_mission_request_message(
+                target.sysid, target.compid, upload.expected, upload.mission_type)
+        else:
+            msg = mavlink.MAVLink_mission_request_int_message(
+                target.sysid, target.compid, upload.expected, upload.mission_type)
+        self._out.send(msg)
+
+    def _ack(self, target: Sender, mission_type: int, result: int) -> None:
+        self._out.send(mavlink.MAVLink_mission_ack_message(
+            target.sysid, target.compid, result, mission_type))

@@ -1,0 +1,143 @@
+"""The parameter protocol over a small set of each autopilot's real parameters.
+
+ArduPilot sends every value as a float with its true type in `param_type`; PX4 copies an
+integer's bytes into the float field ("bytewise" encoding), so both are reproduced.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+from .codec import Message, mavlink
+from .kinematics import NavLimits
+
+INT8, INT16, INT32, REAL32 = (mavlink.MAV_PARAM_TYPE_INT8, mavlink.MAV_PARAM_TYPE_INT16,
+                              mavlink.MAV_PARAM_TYPE_INT32, mavlink.MAV_PARAM_TYPE_REAL32)
+_INTEGER_TYPES = frozenset({mavlink.MAV_PARAM_TYPE_UINT8, INT8, mavlink.MAV_PARAM_TYPE_UINT16,
+                            INT16, mavlink.MAV_PARAM_TYPE_UINT32, INT32})
+
+
+@dataclass
+class Param:
+    name: str
+    value: float
+    type: int
+
+
+ARDUCOPTER_DEFAULTS: tuple[tuple[str, float, int], ...] = (
+    ("SYSID_THISMAV", 1, INT16),
+    ("SYSID_MYGCS", 255, INT16),
+    ("FRAME_CLASS", 1, INT8),
+    ("FRAME_TYPE", 1, INT8),
+    ("ARMING_CHECK", 1, INT32),
+    ("DISARM_DELAY", 10, INT8),
+    ("WPNAV_SPEED", 1000, REAL32),
+    ("WPNAV_RADIUS", 200, REAL32),
+    ("WPNAV_ACCEL", 250, REAL32),
+    ("WPNAV_SPEED_UP", 250, REAL32),
+    ("WPNAV_SPEED_DN", 150, REAL32),
+    ("WPNAV_ACCEL_Z", 100, REAL32),
+    ("LAND_SPEED", 50, INT16),
+    ("RTL_ALT", 1500, INT32),
+    ("FENCE_ENABLE", 0, INT8),
+    ("FS_GCS_ENABLE", 0, INT8),
+    ("WP_YAW_BEHAVIOR", 2, INT8),
+    ("BATT_CAPACITY", 3300, INT32),
+)
+"""ArduCopter 4.x names, units (cm, cm/s) and defaults."""
+
+PX4_DEFAULTS: tuple[tuple[str, float, int], ...] = (
+    ("MAV_SYS_ID", 1, INT32),
+    ("MAV_TYPE", 2, INT32),
+    ("SYS_AUTOSTART", 10016, INT32),
+    ("COM_DISARM_PRFLT", 10.0, REAL32),
+    ("COM_DISARM_LAND", 2.0, REAL32),
+    ("MPC_XY_CRUISE", 5.0, REAL32),
+    ("MPC_XY_VEL_MAX", 12.0, REAL32),
+    ("MPC_ACC_HOR", 3.0, REAL32),
+    ("MPC_Z_VEL_MAX_UP", 3.0, REAL32),
+    ("MPC_Z_VEL_MAX_DN", 1.5, REAL32),
+    ("MPC_ACC_UP_MAX", 4.0, REAL32),
+    ("MPC_LAND_SPEED", 0.7, REAL32),
+    ("NAV_ACC_RAD", 2.0, REAL32),
+    ("MIS_TAKEOFF_ALT", 2.5, REAL32),
+    ("RTL_RETURN_ALT", 30.0, REAL32),
+    ("NAV_DLL_ACT", 0, INT32),
+)
+"""PX4 names, SI units and defaults."""
+
+
+def arducopter_limits(params: ParameterSet) -> NavLimits:
+    cm = 0.01
+    return NavLimits(
+        cruise_speed=params.get("WPNAV_SPEED") * cm,
+        accel=params.get("WPNAV_ACCEL") * cm,
+        climb_rate=params.get("WPNAV_SPEED_UP") * cm,
+        descent_rate=params.get("WPNAV_SPEED_DN") * cm,
+        vertical_accel=params.get("WPNAV_ACCEL_Z") * cm,
+        land_speed=params.get("LAND_SPEED") * cm,
+        accept_radius=params.get("WPNAV_RADIUS") * cm,
+    )
+
+
+def px4_limits(params: ParameterSet) -> NavLimits:
+    return NavLimits(
+        cruise_speed=params.get("MPC_XY_CRUISE"),
+        accel=params.get("MPC_ACC_HOR"),
+        climb_rate=params.get("MPC_Z_VEL_MAX_UP"),
+        descent_rate=params.get("MPC_Z_VEL_MAX_DN"),
+        vertical_accel=params.get("MPC_ACC_UP_MAX"),
+        land_speed=params.get("MPC_LAND_SPEED"),
+        accept_radius=params.get("NAV_ACC_RAD"),
+    )
+
+
+class ParameterSet:
+    """Ordered parameters (the index is the protocol's param_index) and their wire encoding."""
+
+    def __init__(self, defaults: tuple[tuple[str, float, int], ...], bytewise: bool) -> None:
+        self._params = [Param(name, float(value), kind) for name, value, kind in defaults]
+        self._index = {p.name: i for i, p in enumerate(self._params)}
+        self._bytewise = bytewise
+
+    def __len__(self) -> int:
+        return len(self._params)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._index
+
+    def get(self, name: str) -> float:
+        return self._params[self._index[name]].value
+
+    def set(self, name: str, value: float) -> None:
+        param = self._params[self._index[name]]
+        param.value = float(round(value)) if param.type in _INTEGER_TYPES else float(value)
+
+    def value_message(self, name: str) -> Message:
+        index = self._index[name]
+        return self._message(index)
+
+    def message_at(self, index: int) -> Message | None:
+        return self._message(index) if 0 <= index < len(self._params) else None
+
+    def all_messages(self) -> list[Message]:
+        return [self._message(i) for i in range(len(self._params))]
+
+    def decode(self, name: str, wire_value: float) -> float:
+        """The value a PARAM_SET means, undoing PX4's bytewise encoding for integers."""
+        param = self._params[self._index[name]]
+        if self._bytewise and param.type in _INTEGER_TYPES:
+            return float(struct.unpack("<i", struct.pack("<f", wire_value))[0])
+        return wire_value
+
+    def _message(self, index: int) -> Message:
+        param = self._params[index]
+        return mavlink.MAVLink_param_value_message(
+            param.name.encode(), self._encode(param), param.type, len(self._params), index
+        )
+
+    def _encode(self, param: Param) -> float:
+        if self._bytewise and param.type in _INTEGER_TYPES:
+            return struct.unpack("<f", struct.pack("<i", int(param.value)))[0]
+        return param.value

@@ -1,0 +1,167 @@
+"""Flight behaviour stepped by hand (no sockets): arming rules, idle disarm, take-off,
+AUTO, hold times, pause, speed changes, RTL and land."""
+
+from __future__ import annotations
+
+import math
+
+import pymap3d
+import pytest
+
+from sitl_mock import MissionItem, Simulator, VehicleConfig
+from sitl_mock.codec import mavlink
+from sitl_mock.modes import FlightMode
+
+HOME = (47.397742, 8.545594, 488.0)
+ACCEPTED, FAILED = mavlink.MAV_RESULT_ACCEPTED, mavlink.MAV_RESULT_FAILED
+
+
+def at(east: float, north: float, alt: float = 20.0, command: int = 16, p1: float = 0.0):
+    lat, lon, _ = pymap3d.enu2geodetic(east, north, 0.0, *HOME)
+    return MissionItem(0, 6, command, param1=p1, x=round(lat * 1e7), y=round(lon * 1e7), z=alt)
+
+
+def takeoff(alt: float = 20.0) -> MissionItem:
+    return MissionItem(0, 6, mavlink.MAV_CMD_NAV_TAKEOFF, z=alt)
+
+
+def land() -> MissionItem:
+    return MissionItem(0, 6, mavlink.MAV_CMD_NAV_LAND)
+
+
+def make(autopilot: str = "ardupilot", mission: list[MissionItem] | None = None):
+    sim = Simulator([VehicleConfig(sysid=1, home=HOME, autopilot=autopilot)])
+    if mission is not None:
+        home = [MissionItem(0, 0, 16)] if autopilot == "ardupilot" else []
+        sim.load_mission(1, home + mission)
+    return sim, sim.vehicle(1).flight
+
+
+def local(sim: Simulator) -> tuple[float, float]:
+    state = sim.state(1)
+    east, north, _ = pymap3d.geodetic2enu(state.lat, state.lon, HOME[2], *HOME)
+    return east, north
+
+
+def airborne_in_guided(sim: Simulator, flight, alt: float = 20.0) -> None:
+    sim.advance(5.0)
+    assert flight.set_mode(FlightMode.GUIDED, sim.sim_time) == ACCEPTED
+    assert flight.arm(sim.sim_time) == ACCEPTED
+    assert flight.takeoff(alt, sim.sim_time) == ACCEPTED
+    sim.advance(alt / 2.5 + 5.0)
+    assert sim.state(1).alt == pytest.approx(alt, abs=0.3)
+
+
+def test_arming_waits_for_the_estimate_and_an_idle_armed_vehicle_disarms_after_ten_seconds():
+    sim, flight = make()
+    sim.advance(4.0)
+    assert flight.arm(sim.sim_time) == FAILED
+    sim.advance(1.0)
+    assert flight.arm(sim.sim_time) == ACCEPTED
+    sim.advance(9.9)
+    assert flight.armed
+    sim.advance(0.2)
+    assert not flight.armed
+
+
+def test_auto_from_the_ground_waits_for_mission_start():
+    sim, flight = make(mission=[takeoff(), at(0, 30), land()])
+    sim.advance(5.0)
+    flight.set_mode(FlightMode.GUIDED, sim.sim_time)
+    flight.arm(sim.sim_time)
+    assert flight.set_mode(FlightMode.AUTO, sim.sim_time) == ACCEPTED
+    sim.advance(3.0)
+    assert sim.state(1).alt == 0.0 and sim.state(1).mission_state == 2
+    assert flight.start_mission(sim.sim_time) == ACCEPTED
+    sim.advance(3.0)
+    assert sim.state(1).alt > 1.0 and sim.state(1).mission_state == 3
+    sim.advance(60.0)
+    state = sim.state(1)
+    assert not state.armed and state.alt == 0.0 and state.mission_state == 5
+    assert math.hypot(*(a - b for a, b in zip(local(sim), (0, 30), strict=True))) < 2.0
+
+
+def test_airborne_switch_to_auto_continues_and_a_reached_takeoff_completes_at_once():
+    sim, flight = make(mission=[takeoff(10.0), at(40, 0), land()])
+    airborne_in_guided(sim, flight)
+    assert flight.set_mode(FlightMode.AUTO, sim.sim_time) == ACCEPTED
+    sim.advance(0.1)
+    assert sim.state(1).mission_seq == 2  # take-off skipped: already above 10 m
+    sim.advance(10.0)
+    assert local(sim)[0] > 30.0
+
+
+def test_waypoint_hold_time_stops_and_waits():
+    sim, flight = make(mission=[takeoff(), at(20, 0, p1=5.0), at(40, 0)])
+    airborne_in_guided(sim, flight)
+    flight.set_mode(FlightMode.AUTO, sim.sim_time)
+    positions = []
+    for _ in range(200):
+        sim.advance(0.1)
+        positions.append(local(sim)[0])
+    stopped = [east for east in positions if abs(east - 20.0) < 0.2]
+    assert len(stopped) >= 45  # ~5 s at the waypoint
+    assert positions[-1] == pytest.approx(40.0, abs=0.3)
+
+
+def test_pause_holds_and_continue_resumes():
+    sim, flight = make(mission=[takeoff(), at(200, 0), land()])
+    airborne_in_guided(sim, flight)
+    flight.set_mode(FlightMode.AUTO, sim.sim_time)
+    sim.advance(5.0)
+    assert flight.pause(sim.sim_time) == ACCEPTED
+    sim.advance(6.0)
+    paused_at = local(sim)[0]
+    sim.advance(3.0)
+    assert local(sim)[0] == pytest.approx(paused_at, abs=0.05)
+    assert sim.state(1).mission_state == 4
+    assert flight.resume(sim.sim_time) == ACCEPTED
+    sim.advance(3.0)
+    assert local(sim)[0] > paused_at + 5.0
+
+
+def test_change_speed_item_sets_the_cruise_speed():
+    speed = mavlink.MAV_CMD_DO_CHANGE_SPEED
+    sim, flight = make(mission=[takeoff(), MissionItem(0, 2, speed, 1.0, 4.0), at(300, 0)])
+    airborne_in_guided(sim, flight)
+    flight.set_mode(FlightMode.AUTO, sim.sim_time)
+    sim.advance(20.0)
+    assert sim.state(1).ground_speed == pytest.approx(4.0, abs=0.01)
+
+
+def test_rtl_climbs_flies_home_and_lands():
+    sim, flight = make(mission=[takeoff(10.0), at(50, 50, alt=10.0)])
+    airborne_in_guided(sim, flight, alt=10.0)
+    flight.set_mode(FlightMode.AUTO, sim.sim_time)
+    sim.advance(20.0)
+    assert flight.set_mode(FlightMode.RTL, sim.sim_time) == ACCEPTED
+    sim.advance(8.0)
+    assert sim.state(1).alt == pytest.approx(15.0, abs=0.5)  # RTL_ALT 1500 cm
+    sim.advance(60.0)
+    state = sim.state(1)
+    assert not state.armed and state.alt == 0.0
+    assert math.hypot(*local(sim)) < 2.0
+
+
+def test_px4_mission_mode_takes_off_by_itself_and_reports_modes():
+    sim, flight = make("px4", mission=[at(0, 20, alt=10.0), land()])
+    sim.advance(5.0)
+    assert flight.arm(sim.sim_time) == ACCEPTED
+    assert flight.set_mode(FlightMode.AUTO, sim.sim_time) == ACCEPTED
+    state = sim.state(1)
+    assert state.custom_mode == (4 << 16) | (4 << 24)
+    sim.advance(40.0)
+    assert not sim.state(1).armed
+    assert local(sim)[1] == pytest.approx(20.0, abs=2.0)
+
+
+def test_same_inputs_same_track():
+    tracks = []
+    for _ in range(2):
+        sim, flight = make(mission=[takeoff(), at(30, 10), at(0, 40), land()])
+        airborne_in_guided(sim, flight)
+        flight.set_mode(FlightMode.AUTO, sim.sim_time)
+        sim.advance(30.0)
+        tracks.append(sim.track(1))
+    assert tracks[0] == tracks[1]
+    assert len(tracks[0]) == round(sim.sim_time * 10)  # 10 samples per simulated second
