@@ -1,0 +1,93 @@
+"""Commands and their typed errors against simulated vehicles."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from gcs.commands import Cmd, CommandPolicy, send_command
+from gcs.errors import (
+    CommandFailedError,
+    CommandTimeoutError,
+    CommandUnsupportedError,
+)
+from gcs.flight_actions import FlightActions, ReadinessPolicy
+from gcs.flight_modes import custom_mode
+from gcs.mission_item import Autopilot
+from sitl_mock import VehicleConfig
+
+from .conftest import CMAC
+
+
+def wait_for_estimate(sim, sysid: int = 1) -> None:
+    assert sim.wait_until(lambda: sim.state(sysid).estimate_ready, timeout=5.0)
+
+
+def slow_estimate(sysid: int = 1, autopilot: str = "ardupilot", seconds: float = 600.0):
+    return VehicleConfig(sysid=sysid, home=CMAC, autopilot=autopilot, estimate_delay_s=seconds)
+
+
+async def test_arming_before_the_position_estimate_fails_with_the_prearm_text(simulator, links):
+    sim = simulator([slow_estimate()])
+    link = await links(sim, 1)
+    with pytest.raises(CommandFailedError, match="Need Position Estimate") as caught:
+        await FlightActions(link).arm()
+    assert caught.value.command == Cmd.COMPONENT_ARM_DISARM
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+async def test_arming_waits_for_the_estimate_then_takes_off(simulator, links, autopilot: str):
+    sim = simulator([slow_estimate(autopilot=autopilot, seconds=20.0)], speedup=20.0)
+    link = await links(sim, 1)
+    actions = FlightActions(link, readiness=ReadinessPolicy(arm_retry_period_s=0.1))
+    await actions.arm_and_take_off(5.0)
+    await actions.wait_altitude(5.0)
+    assert sim.state(1).armed and sim.state(1).alt > 4.5
+
+
+async def test_arming_in_auto_is_refused_at_once(simulator, links) -> None:
+    sim = simulator([VehicleConfig(sysid=1, home=CMAC)])
+    link = await links(sim, 1)
+    wait_for_estimate(sim)
+    actions = FlightActions(link, readiness=ReadinessPolicy(arm_timeout_s=30.0))
+    await actions.set_mode("AUTO")
+    started = time.perf_counter()
+    with pytest.raises(CommandFailedError):
+        await actions.arm()
+    assert time.perf_counter() - started < 1.0
+
+
+async def test_unknown_commands_are_unsupported(simulator, links) -> None:
+    sim = simulator([VehicleConfig(sysid=1, home=CMAC)])
+    link = await links(sim, 1)
+    with pytest.raises(CommandUnsupportedError, match="command 31000 UNSUPPORTED"):
+        await send_command(link, 31000)
+
+
+async def test_takeoff_while_disarmed_fails(simulator, links) -> None:
+    sim = simulator([VehicleConfig(sysid=1, home=CMAC)])
+    link = await links(sim, 1)
+    wait_for_estimate(sim)
+    actions = FlightActions(link)
+    await actions.set_mode("GUIDED")
+    with pytest.raises(CommandFailedError, match="NAV_TAKEOFF"):
+        await actions.takeoff(10.0)
+
+
+async def test_an_unanswered_command_times_out_after_its_retries(simulator, links) -> None:
+    sim = simulator([VehicleConfig(sysid=1, home=CMAC)])
+    link = await links(sim, 1)
+    sim.silence(1, seconds=100.0)
+    policy = CommandPolicy(timeout_s=0.1, retries=2)
+    with pytest.raises(CommandTimeoutError, match="not acknowledged after 3 attempts"):
+        await send_command(link, Cmd.COMPONENT_ARM_DISARM, 1, policy=policy)
+
+
+@pytest.mark.parametrize("mode", ["LOITER", "RTL", "LAND", "AUTO"])
+async def test_px4_modes_are_set_with_main_and_sub_mode(simulator, links, mode: str) -> None:
+    sim = simulator([VehicleConfig(sysid=1, home=CMAC, autopilot="px4")])
+    link = await links(sim, 1)
+    wait_for_estimate(sim)
+    await FlightActions(link).set_mode(mode)
+    assert sim.state(1).custom_mode == custom_mode(Autopilot.PX4, mode)

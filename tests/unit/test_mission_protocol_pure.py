@@ -1,0 +1,100 @@
+"""Mission results as typed errors, the retry policy and the schedule keeper's decisions."""
+
+from __future__ import annotations
+
+import pytest
+
+from gcs.errors import (
+    InvalidParamError,
+    MissionCancelledError,
+    MissionDeniedError,
+    MissionGenericError,
+    MissionResult,
+    NoSpaceError,
+    UnsupportedCommandError,
+    UnsupportedFrameError,
+    mission_error,
+)
+from gcs.flight_monitor import VehicleProgress
+from gcs.mission_protocol import TransferPolicy
+from gcs.schedule_keeper import KeepingPolicy, decide
+
+
+@pytest.mark.parametrize(
+    ("result", "cls", "definitive"),
+    [
+        (MissionResult.ERROR, MissionGenericError, False),
+        (MissionResult.UNSUPPORTED_FRAME, UnsupportedFrameError, True),
+        (MissionResult.UNSUPPORTED, UnsupportedCommandError, True),
+        (MissionResult.NO_SPACE, NoSpaceError, True),
+        (MissionResult.DENIED, MissionDeniedError, True),
+        (MissionResult.OPERATION_CANCELLED, MissionCancelledError, False),
+    ],
+)
+def test_every_mission_result_has_its_error(result: int, cls: type, definitive: bool) -> None:
+    error = mission_error(7, result, "upload", seq=3)
+    assert type(error) is cls
+    assert error.definitive is definitive
+    assert str(error).startswith("vehicle 7 refused the upload at item seq 3: ")
+    assert MissionResult(result).name in str(error)
+
+
+@pytest.mark.parametrize("param", range(1, 8))
+def test_invalid_param_names_the_parameter(param: int) -> None:
+    error = mission_error(1, MissionResult.INVALID_PARAM1 + param - 1, "upload", seq=2)
+    assert isinstance(error, InvalidParamError)
+    assert error.param == param
+    assert f"param{param}" in str(error)
+
+
+def test_every_result_but_accepted_maps_to_an_error() -> None:
+    for result in MissionResult:
+        if result != MissionResult.ACCEPTED:
+            assert mission_error(1, result, "upload").result == result
+
+
+def test_default_policy_is_the_spec_one() -> None:
+    policy = TransferPolicy()
+    assert (policy.step_timeout_s, policy.item_timeout_s, policy.retries) == (1.5, 0.25, 5)
+    assert policy.stall_limit_s == pytest.approx(9.0)
+
+
+def _progress(uav: str, lag: float, finished: bool = False) -> VehicleProgress:
+    return VehicleProgress(
+        uav,
+        1,
+        "AUTO",
+        True,
+        True,
+        True,
+        0.0,
+        0.0,
+        10.0,
+        2,
+        1,
+        5,
+        10.0,
+        1.0,
+        3.0,
+        5.0,
+        5.0 - lag,
+        lag,
+        False,
+        False,
+        False,
+        finished,
+    )
+
+
+def test_vehicles_ahead_of_a_laggard_wait_and_resume_once_it_caught_up() -> None:
+    policy = KeepingPolicy(pause_margin_s=1.0, resume_margin_s=0.25)
+    first = decide([_progress("a", 2.0), _progress("b", 0.5), _progress("c", 1.5)], set(), policy)
+    assert first.laggard == "a" and first.pause == {"b"} and not first.resume
+    later = decide([_progress("a", 2.0), _progress("b", 1.9), _progress("c", 1.5)], {"b"}, policy)
+    assert later.resume == {"b"} and not later.pause
+
+
+def test_a_finished_vehicle_neither_waits_nor_makes_others_wait() -> None:
+    policy = KeepingPolicy()
+    decision = decide([_progress("a", 9.0, finished=True), _progress("b", 0.0)], {"b"}, policy)
+    assert decision.resume == {"b"} and not decision.pause
