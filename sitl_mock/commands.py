@@ -10,7 +10,6 @@ from typing import ClassVar
 
 from .codec import Message, Sender, mavlink
 from .flight import ACCEPTED, FAILED, FlightController
-from .messages import BUILDERS
 from .mission_store import MissionStore
 from .modes import FlightMode
 from .telemetry import TelemetrySchedule
@@ -55,6 +54,11 @@ class _Answered:
     at: float
 
 
+def _whole(param: float) -> int:
+    """A param as an integer; NaN (how MAVSDK leaves a PX4 command's unused params) is 0."""
+    return round(param) if math.isfinite(param) else 0
+
+
 _Handler = Callable[["CommandHandler", tuple[float, ...], float], Outcome]
 
 
@@ -90,16 +94,16 @@ class CommandHandler:
     # -- one method per command ------------------------------------------------------------
 
     def _arm_disarm(self, p: tuple[float, ...], now: float) -> Outcome:
-        force = round(p[1]) == FORCE_MAGIC
-        if round(p[0]) == 1:
+        force = _whole(p[1]) == FORCE_MAGIC
+        if _whole(p[0]) == 1:
             return Outcome(self._flight.arm(now, force))
         return Outcome(self._flight.disarm(now, force))
 
     def _do_set_mode(self, p: tuple[float, ...], now: float) -> Outcome:
-        custom = round(p[1])
+        custom = _whole(p[1])
         if self._flight.flavour.name == "px4":
-            custom = (round(p[1]) << 16) | (round(p[2]) << 24)
-        return Outcome(self.set_mode(round(p[0]), custom, now))
+            custom = (_whole(p[1]) << 16) | (_whole(p[2]) << 24)
+        return Outcome(self.set_mode(_whole(p[0]), custom, now))
 
     def _takeoff(self, p: tuple[float, ...], now: float) -> Outcome:
         alt = p[6]
@@ -116,7 +120,7 @@ class CommandHandler:
         return Outcome(self._flight.change_speed(p[1]))
 
     def _pause_continue(self, p: tuple[float, ...], now: float) -> Outcome:
-        if round(p[0]) == 0:
+        if _whole(p[0]) == 0:
             return Outcome(self._flight.pause(now))
         return Outcome(self._flight.resume(now))
 
@@ -127,16 +131,16 @@ class CommandHandler:
         return Outcome(self._flight.set_mode(FlightMode.LAND, now))
 
     def _set_mission_current(self, p: tuple[float, ...], now: float) -> Outcome:
-        if not self._store.set_current(round(p[0])):
+        if not self._store.set_current(_whole(p[0])):
             return Outcome(FAILED)
         self._current_changed()
         return Outcome(ACCEPTED)
 
     def _request_message(self, p: tuple[float, ...], now: float) -> Outcome:
-        msg_id = round(p[0])
+        msg_id = _whole(p[0])
         if msg_id == HOME_POSITION and not self._flight.estimate_ready(now):
             return Outcome(FAILED)  # no home until the position estimate has an origin
-        if msg_id == AUTOPILOT_VERSION or msg_id in BUILDERS:
+        if msg_id == AUTOPILOT_VERSION or self._schedule.can_stream(msg_id):
             return Outcome(ACCEPTED, [msg_id])
         return Outcome(FAILED)
 
@@ -144,7 +148,7 @@ class CommandHandler:
         return Outcome(ACCEPTED, [AUTOPILOT_VERSION])
 
     def _set_message_interval(self, p: tuple[float, ...], now: float) -> Outcome:
-        ok = self._schedule.set_message_interval(round(p[0]), p[1], now)
+        ok = self._schedule.set_message_interval(_whole(p[0]), p[1], now)
         return Outcome(ACCEPTED if ok else FAILED)
 
     _handlers: ClassVar[dict[int, _Handler]] = {

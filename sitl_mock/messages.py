@@ -29,6 +29,12 @@ CAPABILITIES = (
     | S.MAV_PROTOCOL_CAPABILITY_MAVLINK2 | S.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
     | S.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
 )
+EKF_READY = (
+    S.EKF_ATTITUDE | S.EKF_VELOCITY_HORIZ | S.EKF_VELOCITY_VERT | S.EKF_POS_HORIZ_REL
+    | S.EKF_POS_HORIZ_ABS | S.EKF_POS_VERT_ABS | S.EKF_PRED_POS_HORIZ_REL
+    | S.EKF_PRED_POS_HORIZ_ABS
+)
+EKF_NO_POSITION = S.EKF_ATTITUDE | S.EKF_VELOCITY_VERT | S.EKF_POS_VERT_ABS | S.EKF_CONST_POS_MODE
 SATELLITES = 10
 BATTERY_MV = 12600
 
@@ -91,6 +97,12 @@ def extended_sys_state(state: VehicleState, flavour: Flavour) -> Message:
     return S.MAVLink_extended_sys_state_message(S.MAV_VTOL_STATE_UNDEFINED, state.landed_state)
 
 
+def ekf_status_report(state: VehicleState, flavour: Flavour) -> Message:
+    """ArduPilot's estimator summary; MAVSDK asks for it along with SYS_STATUS (health)."""
+    flags = EKF_READY if state.estimate_ready else EKF_NO_POSITION
+    return S.MAVLink_ekf_status_report_message(flags, 0.02, 0.02, 0.02, 0.02, 0.0, 0.0)
+
+
 def mission_current(state: VehicleState, flavour: Flavour) -> Message:
     return S.MAVLink_mission_current_message(
         state.mission_seq, state.mission_total, state.mission_state, 0)
@@ -119,7 +131,16 @@ BUILDERS: dict[int, Callable[[VehicleState, Flavour], Message]] = {
     S.MAVLINK_MSG_ID_MISSION_CURRENT: mission_current,
     S.MAVLINK_MSG_ID_BATTERY_STATUS: battery_status,
     S.MAVLINK_MSG_ID_SYSTEM_TIME: system_time,
+    S.MAVLINK_MSG_ID_EKF_STATUS_REPORT: ekf_status_report,
 }
+ARDUPILOT_ONLY = frozenset({S.MAVLINK_MSG_ID_EKF_STATUS_REPORT})
+
+
+def streamable(flavour: Flavour) -> frozenset[int]:
+    """The messages a vehicle of this flavour can stream or send on request."""
+    if flavour.name == "ardupilot":
+        return frozenset(BUILDERS)
+    return frozenset(BUILDERS) - ARDUPILOT_ONLY
 
 
 def autopilot_version(sysid: int, flavour: Flavour) -> Message:

@@ -81,7 +81,7 @@ class Vehicle:
         self.flight = FlightController(self.flavour, body, self.params, self.store, home,
                                        to_local, self, self.say, config.estimate_delay_s)
         self.schedule = TelemetrySchedule(self._stream_by_default,
-                                          frozenset(messages.BUILDERS))
+                                          messages.streamable(self.flavour))
         self.commands = CommandHandler(self.flight, self.store, self.schedule,
                                        self.current_changed)
         self.store.on_mission_changed = self._mission_changed
