@@ -269,6 +269,7 @@ MODULE_COMMANDS = {
     "sitl": ("sitl_mock.cli", "run simulated MAVLink vehicles (ArduCopter or PX4 flavour)"),
     "fly": ("gcs.fly_command", "plan a scenario, upload it to vehicles and fly it"),
     "serve": ("gcs.api.serve_command", "run the planning service (REST + WebSocket)"),
+    "demo": ("gcs.demo_command", "run the service with mock vehicles, ready for case VI"),
 }
 """Commands whose options live beside their code: each module has `add_arguments(parser)`
 and `run(args) -> int`."""
@@ -276,12 +277,7 @@ and `run(args) -> int`."""
 
 def _add_module_commands(commands: argparse._SubParsersAction) -> None:
     for name, (module_name, help_text) in MODULE_COMMANDS.items():
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:  # TODO(session 3): remove once all three exist
-            if exc.name is None or not module_name.startswith(exc.name):
-                raise
-            continue
+        module = importlib.import_module(module_name)
         sub = commands.add_parser(name, help=help_text, description=help_text)
         module.add_arguments(sub)
         sub.set_defaults(handler=module.run)

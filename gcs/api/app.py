@@ -16,8 +16,11 @@ from starlette.routing import Route
 from gcs.api.auth import ensure_token
 from gcs.api.body_limit import BodySizeLimit
 from gcs.api.deps import Services
+from gcs.api.flight_service import BadBindings, BadObject, FlightConflict
 from gcs.api.planning import JobNotCancellable
-from gcs.api.routers import health, plans, scenarios
+from gcs.api.routers import flights, health, missions, plans, scenarios, vehicles
+from gcs.api.vehicle_registry import VehicleOffline
+from gcs.errors import GcsError
 from gcs.planning_jobs import PlanningPool
 from gcs.settings import Settings
 from gcs.storage import Database, NotFound
@@ -47,11 +50,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         pool = PlanningPool(settings.plan_workers, services.planning.on_progress)
         pool.start()
         services.planning.pool = pool
+        for vehicle in services.vehicles.list(limit=10_000):
+            services.registry.add(vehicle.id, vehicle.connection, vehicle.sysid)
         app.state.token, app.state.token_file, app.state.services = token, token_file, services
         _announce(settings, token, token_file)
         try:
             yield
         finally:
+            await services.flight_service.close()
+            await services.registry.close()
             await services.planning.shutdown()
             pool.shutdown()
             db.close()
@@ -63,9 +70,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
     )
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
-    for router in (scenarios.router, plans.router, health.router):
-        app.include_router(router)
-    _add_error_handlers(app)
+    routers = (scenarios, plans, missions, vehicles, flights, health)
+    for module in routers:
+        app.include_router(module.router)
+        _add_error_handlers(app)
     return app
 
 
@@ -102,3 +110,10 @@ def _add_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(StarletteHTTPException, http_error)
     app.add_exception_handler(NotFound, problem(404))
     app.add_exception_handler(JobNotCancellable, problem(409))
+    app.add_exception_handler(missions.UnflyablePlan, problem(409))
+    app.add_exception_handler(vehicles.AlreadyRegistered, problem(409))
+    app.add_exception_handler(VehicleOffline, problem(409))
+    app.add_exception_handler(FlightConflict, problem(409))
+    app.add_exception_handler(BadBindings, problem(422))
+    app.add_exception_handler(BadObject, problem(422))
+    app.add_exception_handler(GcsError, problem(502))  # the vehicle, not the request

@@ -9,9 +9,11 @@ from fastapi import Depends
 from starlette.requests import HTTPConnection
 
 from gcs.api.auth import require_token
+from gcs.api.flight_service import FlightService
 from gcs.api.metrics import ServiceMetrics
 from gcs.api.planning import PlanningService
 from gcs.api.schemas import Problem
+from gcs.api.vehicle_registry import VehicleRegistry
 from gcs.settings import Settings
 from gcs.storage import (
     Database,
@@ -36,11 +38,15 @@ class Services:
     vehicles: VehicleRepository
     flights: FlightRepository
     planning: PlanningService
+    registry: VehicleRegistry
+    flight_service: FlightService
 
     @classmethod
     def build(cls, settings: Settings, db: Database) -> Services:
         metrics = ServiceMetrics()
         scenarios, plans, jobs = ScenarioRepository(db), PlanRepository(db), JobRepository(db)
+        vehicles, flights = VehicleRepository(db), FlightRepository(db)
+        registry = VehicleRegistry(metrics)
         return cls(
             settings=settings,
             db=db,
@@ -48,9 +54,18 @@ class Services:
             scenarios=scenarios,
             plans=plans,
             jobs=jobs,
-            vehicles=VehicleRepository(db),
-            flights=FlightRepository(db),
+            vehicles=vehicles,
+            flights=flights,
             planning=PlanningService(scenarios, plans, jobs, metrics),
+            registry=registry,
+            flight_service=FlightService(
+                plans=plans,
+                scenarios=scenarios,
+                flights=flights,
+                vehicles=vehicles,
+                registry=registry,
+                metrics=metrics,
+            ),
         )
 
 
