@@ -177,7 +177,7 @@ def _wrap180(degrees: float) -> float:
 
 
 def _msec(state: VehicleState) -> int:
-    return round(state.t * 1000) & 0xFFFFFFFF
+    return round(state.uptime * 1000) & 0xFFFFFFFF
 
 
 def _usec(state: VehicleState) -> int:

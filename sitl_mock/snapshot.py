@@ -10,6 +10,8 @@ class VehicleState:
     sysid: int
     t: float
     """Simulated seconds."""
+    uptime: float
+    """Simulated seconds since the vehicle (re)booted: what time_boot_ms counts."""
     lat: float
     lon: float
     alt: float

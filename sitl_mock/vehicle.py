@@ -24,7 +24,7 @@ from .telemetry import TelemetrySchedule
 from .transport import Endpoint
 
 DEFAULT_HOME = (47.3977, 8.5456, 488.0)
-REBOOT_SILENCE_S = 2.0
+REBOOT_SILENCE_S = 1.0  # shorter than the BOOT status, so a ground station sees it
 PREARM_REPEAT_S = 30.0
 PX4_REACHED_REPEAT_S = 1.0
 
@@ -202,7 +202,8 @@ class Vehicle:
             v_east, v_north) > 0.5 else 0.0
         home = flight.home
         return VehicleState(
-            sysid=self.sysid, t=now, lat=lat, lon=lon, alt=alt, alt_amsl=home.alt_amsl + alt,
+            sysid=self.sysid, t=now, uptime=now - self._boot_time, lat=lat, lon=lon, alt=alt,
+            alt_amsl=home.alt_amsl + alt,
             velocity_ned=(v_north, v_east, -v_up), heading_deg=heading, armed=flight.armed,
             mode=flight.mode.value, custom_mode=flavour.modes.custom_mode(flight.mode),
             base_mode=flavour.modes.base_mode(flight.mode, flight.armed),
