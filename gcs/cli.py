@@ -8,33 +8,25 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from pydantic import ValidationError
-
-from planner.cases import CASES, PAPER_POPULATIONS, load_case
+from gcs.planning_options import (
+    ScenarioFileError,
+    add_planning_arguments,
+    planner_settings,
+    positive_int,
+    read_scenario,
+)
+from planner.cases import CASES, PAPER_POPULATIONS
 from planner.experiments.library_comparison import BenchDependencyError
 from planner.optimizers import ALGORITHMS, ObjectiveError, OptimizerInputError
-from planner.scenario import Scenario, load_scenario
-
-
-class ScenarioFileError(ValueError):
-    """The scenario file is missing, unreadable or invalid."""
-
 
 USER_ERRORS = (OptimizerInputError, ObjectiveError, BenchDependencyError, ScenarioFileError)
 """Errors a user can cause: reported in one line, exit code 2, no traceback."""
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
 def _add_executor_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--workers",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="local worker processes (default: one per core)",
     )
@@ -93,41 +85,11 @@ def _bench_optimizers(args: argparse.Namespace) -> int:
     return 0
 
 
-def _read_scenario(source: str) -> Scenario:
-    """A scenario file, or the name of one of the paper's cases (case-1 .. case-6)."""
-    path = Path(source)
-    if not path.exists() and source in CASES:
-        return load_case(source)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioFileError(f"cannot read scenario {source}: {exc.strerror}") from exc
-    try:
-        return load_scenario(text)
-    except ValidationError as exc:
-        raise ScenarioFileError(f"{source} is not a valid scenario:\n{_describe(exc)}") from exc
-
-
-def _describe(exc: ValidationError) -> str:
-    lines = []
-    for error in exc.errors():
-        where = ".".join(str(p) for p in error["loc"]) or "scenario"
-        lines.append(f"  {where}: {error['msg'].removeprefix('Value error, ')}")
-    return "\n".join(lines)
-
-
 def _plan(args: argparse.Namespace) -> int:
-    from planner.pipeline import PlannerSettings, plan
+    from planner.pipeline import plan
 
-    scenario = _read_scenario(args.scenario)
-    settings = PlannerSettings(
-        algorithm=args.algorithm,
-        objective=args.objective,
-        seed=args.seed,
-        population=args.population,
-        iterations=args.iterations,
-    )
-    result = plan(scenario, settings)
+    scenario = read_scenario(args.scenario)
+    result = plan(scenario, planner_settings(args))
     text = result.model_dump_json(indent=2)
     if args.output:
         args.output.write_text(text + "\n")
@@ -173,8 +135,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="Table II (NFE to the optimum) and Fig. 1 (convergence) on benchmark functions",
     )
     bench_fns.add_argument("--out", type=Path, required=True, help="output directory")
-    bench_fns.add_argument("--seeds", type=_positive_int, default=30)
-    bench_fns.add_argument("--iterations", type=_positive_int, default=1000)
+    bench_fns.add_argument("--seeds", type=positive_int, default=30)
+    bench_fns.add_argument("--iterations", type=positive_int, default=1000)
     bench_fns.add_argument(
         "--tolerance",
         type=float,
@@ -197,10 +159,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="Table III and Figs. 3-5: the paper's six cases planned by every algorithm",
     )
     cases.add_argument("--out", type=Path, required=True, help="output directory")
-    cases.add_argument("--seeds", type=_positive_int, default=30)
-    cases.add_argument("--iterations", type=_positive_int, default=1000)
+    cases.add_argument("--seeds", type=positive_int, default=30)
+    cases.add_argument("--iterations", type=positive_int, default=1000)
     cases.add_argument(
-        "--populations", type=_positive_int, nargs="+", default=list(PAPER_POPULATIONS)
+        "--populations", type=positive_int, nargs="+", default=list(PAPER_POPULATIONS)
     )
     cases.add_argument(
         "--algorithms", nargs="+", choices=sorted(ALGORITHMS), default=list(ALGORITHMS)
@@ -220,12 +182,7 @@ def build_parser() -> argparse.ArgumentParser:
     plan = commands.add_parser(
         "plan", help="plan collision-free paths for a scenario; exit 1 if no safe plan"
     )
-    plan.add_argument("scenario", help="scenario JSON file, or case-1 .. case-6")
-    plan.add_argument("--algorithm", choices=sorted(ALGORITHMS), default="mvo")
-    plan.add_argument("--objective", choices=["qos", "paper"], default="qos")
-    plan.add_argument("--seed", type=int, default=1)
-    plan.add_argument("--population", type=_positive_int, default=30)
-    plan.add_argument("--iterations", type=_positive_int, default=1000)
+    add_planning_arguments(plan)
     plan.add_argument("-o", "--output", type=Path, help="write the plan here (default: stdout)")
     plan.set_defaults(handler=_plan)
 
@@ -236,10 +193,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="our six optimizers against mealpy and EvoloPy (needs the 'bench' extra)",
     )
     libs.add_argument("--out", type=Path, default=Path("bench/results/optimizers.md"))
-    libs.add_argument("--seeds", type=_positive_int, default=10)
-    libs.add_argument("--iterations", type=_positive_int, default=1000)
-    libs.add_argument("--population", type=_positive_int, default=30)
-    libs.add_argument("--dim", type=_positive_int, default=30)
+    libs.add_argument("--seeds", type=positive_int, default=10)
+    libs.add_argument("--iterations", type=positive_int, default=1000)
+    libs.add_argument("--population", type=positive_int, default=30)
+    libs.add_argument("--dim", type=positive_int, default=30)
     libs.add_argument(
         "--algorithms", nargs="+", choices=sorted(ALGORITHMS), default=list(ALGORITHMS)
     )
@@ -249,14 +206,14 @@ def build_parser() -> argparse.ArgumentParser:
         "planner", help="the path planner's targets: six cases, speed, 100 generated scenarios"
     )
     paths.add_argument("--out", type=Path, default=Path("bench/results/planner.md"))
-    paths.add_argument("--scenarios", type=_positive_int, default=100)
+    paths.add_argument("--scenarios", type=positive_int, default=100)
     paths.add_argument("--first-seed", type=int, default=0)
     paths.add_argument("--algorithm", choices=sorted(ALGORITHMS), default="mvo")
-    paths.add_argument("--population", type=_positive_int, default=30)
-    paths.add_argument("--iterations", type=_positive_int, default=1000)
+    paths.add_argument("--population", type=positive_int, default=30)
+    paths.add_argument("--iterations", type=positive_int, default=1000)
     paths.add_argument(
         "--workers",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="processes for the generated scenarios (timed sections always run alone)",
     )

@@ -19,25 +19,25 @@ from gcs.flight_pace import DEFAULT_MAX_SPEED_M_S, TURN_RADIUS_M, paced_flight
 from gcs.link import VehicleLink
 from gcs.mission_build import DEFAULT_ALTITUDE_M
 from gcs.mission_item import Mission
+from gcs.planning_options import (
+    ScenarioFileError,
+    add_planning_arguments,
+    planner_settings,
+    read_scenario,
+)
 from gcs.progress_display import ProgressDisplay
-from planner.optimizers import ALGORITHMS
 from planner.plan import Plan
 from planner.scenario import Scenario
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", help="scenario JSON file, or case-1 .. case-6")
+    add_planning_arguments(parser)
     parser.add_argument(
         "--vehicles",
         required=True,
         help="comma-separated connection strings, one per UAV in scenario order "
         "(udpout:HOST:PORT, udpin:HOST:PORT, tcp:HOST:PORT)",
     )
-    parser.add_argument("--algorithm", choices=sorted(ALGORITHMS), default="mvo")
-    parser.add_argument("--objective", choices=["qos", "paper"], default="qos")
-    parser.add_argument("--seed", type=int, default=1)
-    parser.add_argument("--population", type=int, default=30)
-    parser.add_argument("--iterations", type=int, default=1000)
     parser.add_argument(
         "--altitude",
         type=float,
@@ -68,9 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gcs.cli import ScenarioFileError, _read_scenario
-
-    scenario = _read_scenario(args.scenario)
+    scenario = read_scenario(args.scenario)
     urls = [u.strip() for u in args.vehicles.split(",") if u.strip()]
     if len(urls) != len(scenario.uavs):
         raise ScenarioFileError(
@@ -89,17 +87,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _plan(scenario: Scenario, args: argparse.Namespace) -> Plan:
-    from planner.pipeline import PlannerSettings, plan
+    from planner.pipeline import plan
 
-    settings = PlannerSettings(
-        algorithm=args.algorithm,
-        objective=args.objective,
-        seed=args.seed,
-        population=args.population,
-        iterations=args.iterations,
-    )
     print(f"planning {scenario.name} with {args.algorithm} ...", flush=True)
-    return plan(scenario, settings)
+    return plan(scenario, planner_settings(args))
 
 
 async def _fly(scenario: Scenario, plan: Plan, urls: list[str], args: argparse.Namespace) -> int:

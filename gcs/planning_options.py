@@ -1,0 +1,67 @@
+"""What every command that plans takes from the command line: a scenario and the
+planner's settings. Shared by `mvo-gcs plan` and `mvo-gcs fly`."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from planner.cases import CASES, load_case
+from planner.optimizers import ALGORITHMS
+from planner.pipeline import PlannerSettings
+from planner.scenario import Scenario, load_scenario
+
+
+class ScenarioFileError(ValueError):
+    """The scenario file is missing, unreadable or invalid."""
+
+
+def positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def add_planning_arguments(parser: argparse.ArgumentParser, iterations: int = 1000) -> None:
+    parser.add_argument("scenario", help="scenario JSON file, or case-1 .. case-6")
+    parser.add_argument("--algorithm", choices=sorted(ALGORITHMS), default="mvo")
+    parser.add_argument("--objective", choices=["qos", "paper"], default="qos")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--population", type=positive_int, default=30)
+    parser.add_argument("--iterations", type=positive_int, default=iterations)
+
+
+def planner_settings(args: argparse.Namespace) -> PlannerSettings:
+    return PlannerSettings(
+        algorithm=args.algorithm,
+        objective=args.objective,
+        seed=args.seed,
+        population=args.population,
+        iterations=args.iterations,
+    )
+
+
+def read_scenario(source: str) -> Scenario:
+    """A scenario file, or the name of one of the paper's cases (case-1 .. case-6)."""
+    path = Path(source)
+    if not path.exists() and source in CASES:
+        return load_case(source)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ScenarioFileError(f"cannot read scenario {source}: {exc.strerror}") from exc
+    try:
+        return load_scenario(text)
+    except ValidationError as exc:
+        raise ScenarioFileError(f"{source} is not a valid scenario:\n{_describe(exc)}") from exc
+
+
+def _describe(exc: ValidationError) -> str:
+    lines = []
+    for error in exc.errors():
+        where = ".".join(str(p) for p in error["loc"]) or "scenario"
+        lines.append(f"  {where}: {error['msg'].removeprefix('Value error, ')}")
+    return "\n".join(lines)
