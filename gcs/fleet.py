@@ -64,6 +64,7 @@ class FleetSettings:
     transfer: TransferPolicy = field(default_factory=TransferPolicy)
     commands: CommandPolicy = field(default_factory=CommandPolicy)
     readiness: ReadinessPolicy = field(default_factory=ReadinessPolicy)
+    start_tolerance_m: float = 3.0  # how far from its start a vehicle may be when it arms
     tick_s: float = 0.02  # wall seconds between looks at the fleet
     progress_every_s: float = 0.25  # wall seconds between Progress events
 
@@ -181,8 +182,14 @@ class Fleet:
     async def prepare(self) -> dict[str, VehicleOutcome[None]]:
         """Arm, take off and hold every vehicle at its altitude over its start.
 
-        If one fails, the others do the fallback and `start` will refuse.
+        Nobody arms unless every vehicle is at its start. If one fails later, the others
+        do the fallback and `start` will refuse.
         """
+        outcomes = await self._each(self._check_at_start, "prepare")
+        failed = tuple(uav for uav, o in outcomes.items() if not o.ok)
+        if failed:
+            self._bus.publish(StartCancelled(failed, "none armed"))
+            return outcomes
         outcomes = await self._each(self._prepare_one, "prepare")
         failed = tuple(uav for uav, o in outcomes.items() if not o.ok)
         self._ready = not failed
@@ -402,6 +409,22 @@ class Fleet:
                 )
 
         member.link.on_message(on_position, ["GLOBAL_POSITION_INT"])
+
+    async def _check_at_start(self, member: _Member) -> None:
+        """The plan is safe only if every UAV starts where the plan starts it."""
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + self.settings.readiness.arm_timeout_s
+        while (position := member.link.state.position) is None:  # no estimate yet
+            if loop.time() > deadline:
+                raise FlightError(f"{member.uav_id}: the vehicle reports no position")
+            await asyncio.sleep(self.settings.tick_s)
+        off = metres_between(position.lat, position.lon, *member.tracker.origin)
+        if off > self.settings.start_tolerance_m:
+            raise FlightError(
+                f"{member.uav_id} is {off:.1f} m from its start "
+                f"(limit {self.settings.start_tolerance_m} m): the plan is only safe "
+                "from the start it was planned for"
+            )
 
     def _distance_to_goal(self, member: _Member) -> float:
         pos, goal = member.link.state.position, member.tracker.visits[-1]

@@ -103,7 +103,7 @@ async def test_a_vehicle_failing_before_the_start_starts_nobody(simulator) -> No
     await asyncio.wait_for(listener, 2.0)
     assert not report.completed and "position" in report.failed["uav2"]
     assert any(isinstance(e, StartCancelled) and e.failed == ("uav2",) for e in events)
-    assert sim.state(1).mode == "LAND"
+    assert not sim.state(1).armed  # nobody arms unless every vehicle is at its start
     assert all(sim.state(k).mission_state != 3 for k in (1, 2))  # no mission active
 
 
@@ -130,3 +130,17 @@ async def test_abort_brings_every_vehicle_down(simulator) -> None:
 async def _collect(fleet: Fleet, into: list) -> None:
     async for event in fleet.events():
         into.append(event)
+
+
+async def test_a_vehicle_away_from_its_start_starts_nobody(simulator) -> None:
+    scenario, the_plan = planned("case-1")
+    configs = vehicles_at_starts(scenario)
+    lat, lon, alt = configs[0].home
+    from dataclasses import replace
+
+    configs[0] = replace(configs[0], home=(lat + 1e-4, lon, alt))  # 11 m north of its start
+    sim = simulator(configs, speedup=SPEEDUP)
+    fleet = await _fleet(sim, scenario, the_plan, FleetSettings(fallback=Fallback.HOLD))
+    report = await fleet.fly()
+    assert not report.completed and "from its start" in report.failed["uav1"]
+    assert not any(sim.state(k).armed for k in (1, 2))
