@@ -11,12 +11,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import multiprocessing
+import os
 import queue
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
+from multiprocessing.managers import SyncManager
 from typing import Any
 
 from planner.pipeline import PlannerSettings, PlanProgress, plan
@@ -46,10 +48,14 @@ class PlanningPool:
 
     def __init__(self, workers: int, on_progress: ProgressSink) -> None:
         context = multiprocessing.get_context("spawn")  # no fork of a threaded server
-        self._manager = context.Manager()
+        owner = (os.getpid(),)
+        self._manager = SyncManager(ctx=context)
+        self._manager.start(exit_with_parent, owner)
         self._progress = self._manager.Queue()
         self._cancelled = self._manager.dict()
-        self._executor = ProcessPoolExecutor(max_workers=workers, mp_context=context)
+        self._executor = ProcessPoolExecutor(
+            max_workers=workers, mp_context=context, initializer=exit_with_parent, initargs=owner
+        )
         self._on_progress = on_progress
         self._stop = threading.Event()
         self._reader = threading.Thread(target=self._read_progress, daemon=True)
@@ -92,6 +98,18 @@ class PlanningPool:
                 return  # the manager is gone: the service is stopping
             if self._loop is not None and not self._loop.is_closed():
                 self._loop.call_soon_threadsafe(self._on_progress, JobProgress(*item))
+
+
+def exit_with_parent(owner_pid: int) -> None:
+    """In each helper process: end it if the service dies without cleaning up (a crash,
+    SIGKILL), rather than leave an orphan planning for nobody."""
+
+    def watch() -> None:
+        while os.getppid() == owner_pid:
+            time.sleep(1.0)
+        os._exit(0)
+
+    threading.Thread(target=watch, daemon=True, name="exit-with-parent").start()
 
 
 def run_plan(

@@ -70,7 +70,8 @@ class PlanningService:
                 self.pool.forget(job_id)
 
     def on_progress(self, p: JobProgress) -> None:
-        if p.job_id in self._tasks:
+        task = self._tasks.get(p.job_id)
+        if task is not None and not task.done():  # a late report must not undo "done"
             self._set(p.job_id, state="running", percent=p.percent, best_cost=p.best_cost)
 
     def cancel(self, job_id: str) -> JobRow:
