@@ -17,13 +17,17 @@ from typing import Any
 
 from gcs.api.live_replanning import replan_flight
 from gcs.api.metrics import ServiceMetrics
-from gcs.api.vehicle_registry import VehicleOffline, VehicleRegistry
+from gcs.api.vehicle_registry import VehicleRegistry
 from gcs.fleet import Fleet, FleetSettings, VehicleOutcome
 from gcs.fleet_events import FleetEvent, Progress
 from gcs.flight_pace import paced_flight
 from gcs.mission_item import Mission
-from gcs.storage import FlightRepository, NotFound, PlanRepository, ScenarioRepository
-from gcs.storage.repositories import VehicleRepository
+from gcs.storage import (
+    FlightRepository,
+    PlanRepository,
+    ScenarioRepository,
+    VehicleRepository,
+)
 from gcs.storage.tables import FlightRow, UploadRow
 from planner.live_replan import NewObject
 from planner.plan import Plan
@@ -323,13 +327,3 @@ def _log_failure(active: ActiveFlight, task: asyncio.Task[Any]) -> None:
 def event_json(event: FleetEvent) -> dict[str, Any]:
     return {"type": "event", "kind": type(event).__name__, **dataclasses.asdict(event)}
 
-
-__all__ = [
-    "BadBindings",
-    "BadObject",
-    "FlightConflict",
-    "FlightService",
-    "NotFound",
-    "VehicleAnswer",
-    "VehicleOffline",
-]
