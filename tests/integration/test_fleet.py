@@ -1,6 +1,6 @@
 """Fleet flights on simulated vehicles: the paper's six cases and a 10-UAV crossing.
 
-Each plan is flown to the end at 40x; every vehicle must land within the acceptance
+Each plan is flown to the end at 20x; every vehicle must land within the acceptance
 radius of its goal, and the closest approach the SIMULATOR measured over the whole
 flight must be at least the plan's 2R.
 """
@@ -28,7 +28,7 @@ from sitl_mock import Faults
 from .conftest import CMAC
 from .flights import GOAL_RADIUS_M, fly_plan, vehicles_at_starts
 
-SPEEDUP = 40.0
+SPEEDUP = 20.0  # the floor the issue sets; more turns wall-clock jitter into sim seconds
 CROSSING_SEED = 0
 
 
