@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
@@ -44,18 +45,18 @@ class Endpoint:
         return cls(kind, host, int(port))  # type: ignore[arg-type]
 
 
-class ByteTransport:
+class ByteTransport(ABC):
     """Sends and receives raw MAVLink bytes; subclasses own the socket."""
 
-    def send(self, data: bytes, peer: Peer = None) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def send(self, data: bytes, peer: Peer = None) -> None: ...
 
     def peers(self) -> list[Peer]:
         """Every address worth sending a broadcast (a GCS heartbeat) to."""
         return [None]
 
-    def close(self) -> None:
-        raise NotImplementedError
+    @abstractmethod
+    def close(self) -> None: ...
 
 
 class _Datagrams(asyncio.DatagramProtocol):
