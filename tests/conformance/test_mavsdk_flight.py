@@ -18,17 +18,16 @@ from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import dataclass
 from typing import TypeVar
 
+import mavsdk.asyncio as mavsdk  # the test extra installs it: a missing one must fail
 import pymap3d
 import pytest
+from mavsdk.asyncio.plugins.action import ActionAsync
+from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+from mavsdk.plugins.mission_raw import MissionItem
+from mavsdk.plugins.telemetry import FlightMode
 
 from sitl_mock import Simulator, VehicleConfig
-
-mavsdk = pytest.importorskip("mavsdk.asyncio")
-from mavsdk.asyncio.plugins.action import ActionAsync  # noqa: E402
-from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync  # noqa: E402
-from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
-from mavsdk.plugins.mission_raw import MissionItem  # noqa: E402
-from mavsdk.plugins.telemetry import FlightMode  # noqa: E402
 
 T = TypeVar("T")
 

@@ -23,7 +23,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+import mavsdk.asyncio as mavsdk  # the test extra installs it: a missing one must fail
 import pytest
+from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
 from pymavlink import mavutil
 
 from gcs.mission_build import build_missions
@@ -31,9 +33,6 @@ from gcs.mission_files import write_plan, write_waypoints
 from gcs.mission_item import Autopilot, Frame, Mission, MissionItem
 from planner.cases import load_case
 from planner.pipeline import PlannerSettings, plan
-
-mavsdk = pytest.importorskip("mavsdk.asyncio")
-from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync  # noqa: E402
 
 GLOBAL_INT = 5
 MAV_TYPE_QUADROTOR = 2
