@@ -23,9 +23,7 @@ import multiprocessing as mp
 import os
 import platform
 import shutil
-import socket
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -48,8 +46,8 @@ from planner.experiments.machine import cpu_model
 from planner.pipeline import PlannerSettings, plan
 from planner.scenario import Scenario
 from sitl_mock import Simulator, VehicleConfig
+from tests.service_process import TOKEN, ServiceProcess
 
-TOKEN = "bench-token-0123456789abcdef"
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 ORIGIN = {"lat": -35.363262, "lon": 149.165237, "alt_m": 584.0}
 FLEET = 20
@@ -131,69 +129,6 @@ def loadavg() -> str:
 # --- the service --------------------------------------------------------------------------
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-class Service:
-    """`mvo-gcs serve` in a subprocess on a fresh data directory, default workers."""
-
-    def __init__(self, data_dir: Path) -> None:
-        self.data_dir = data_dir
-        self.port = free_port()
-        self.url = f"http://127.0.0.1:{self.port}"
-        self.log = data_dir / "service.log"
-        self.process: subprocess.Popen[bytes] | None = None
-        self.command = [
-            str(Path(sys.executable).parent / "mvo-gcs"),
-            "serve",
-            "--port",
-            str(self.port),
-            "--data-dir",
-            str(data_dir),
-        ]
-
-    def start(self) -> None:
-        self.data_dir.mkdir(parents=True, exist_ok=True)
-        env = {**os.environ, "MVO_GCS_TOKEN": TOKEN}
-        with self.log.open("ab") as log:
-            self.process = subprocess.Popen(self.command, env=env, stdout=log, stderr=log)
-        deadline = time.monotonic() + READY_TIMEOUT_S
-        while time.monotonic() < deadline:
-            if self.process.poll() is not None:
-                raise RuntimeError(f"the service exited: {self.log.read_text()[-2000:]}")
-            try:
-                if httpx.get(f"{self.url}/health/ready", timeout=1).status_code == 200:
-                    return
-            except httpx.TransportError:
-                pass
-            time.sleep(0.2)
-        raise TimeoutError(f"the service did not get ready: {self.log.read_text()[-2000:]}")
-
-    @property
-    def pid(self) -> int:
-        assert self.process is not None
-        return self.process.pid
-
-    def stop(self) -> None:
-        if self.process is None:
-            return
-        self.process.terminate()
-        try:
-            self.process.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait(timeout=5)
-
-    def problems(self) -> list[str]:
-        """Log lines that say something went wrong (errors, tracebacks, 5xx answers)."""
-        marks = ("ERROR", "Traceback", '" 500', '" 502', '" 503')
-        lines = self.log.read_text(errors="replace").splitlines()
-        return [line for line in lines if any(m in line for m in marks)]
-
-
 def api(url: str, timeout: float = 120.0, connections: int = 100) -> httpx.AsyncClient:
     limits = httpx.Limits(max_connections=connections, max_keepalive_connections=connections)
     headers = {"Authorization": f"Bearer {TOKEN}"}
@@ -260,7 +195,9 @@ async def probe(client: httpx.AsyncClient, load: PlanLoad, until: float) -> None
         await asyncio.sleep(0.1)
 
 
-async def plan_load(service: Service, scenario_id: str, load: PlanLoad, seconds: float) -> None:
+async def plan_load(
+    service: ServiceProcess, scenario_id: str, load: PlanLoad, seconds: float
+) -> None:
     path = f"/scenarios/{scenario_id}/plans"
     pids = {"service": [service.pid], "workers": children(service.pid)}
     async with api(service.url, connections=load.clients + 5) as client:
@@ -273,7 +210,7 @@ async def plan_load(service: Service, scenario_id: str, load: PlanLoad, seconds:
     load.cores = meter.cores
 
 
-async def warm_up(service: Service, scenario_id: str) -> None:
+async def warm_up(service: ServiceProcess, scenario_id: str) -> None:
     """The pool spawns its workers and imports the planner on the first jobs: not measured."""
     async with api(service.url) as client:
         path = f"/scenarios/{scenario_id}/plans"
@@ -347,7 +284,9 @@ def vehicles(scenario: Scenario, speedup: float) -> Iterator[tuple[list[str], in
             child.kill()
 
 
-async def fly(service: Service, scenario: Scenario, links: list[str]) -> dict[str, float | str]:
+async def fly(
+    service: ServiceProcess, scenario: Scenario, links: list[str]
+) -> dict[str, float | str]:
     """Register, plan, bind, upload (once the vehicles are heard) and start the flight."""
     async with api(service.url) as client:
         ids = []
@@ -502,7 +441,7 @@ def relative_ages(runs: list[FanOut], speedup: float) -> dict[int, np.ndarray]:
     return {k: (v - floor) * 1000 for k, v in offsets.items()}
 
 
-async def live_phase(service: Service, speedup: float, seconds: float, clients: int) -> dict:
+async def live_phase(service: ServiceProcess, speedup: float, seconds: float, clients: int) -> dict:
     scenario = line_scenario()
     with vehicles(scenario, speedup) as (links, sim_pid):
         flight = await fly(service, scenario, links)
@@ -679,17 +618,15 @@ def race_note(loads: list[PlanLoad]) -> list[str]:
     return [
         f"- Service bug seen: {answered} plan request(s) answered 202 (`running`, percent "
         f"99.0, but with a `plan_id`) although `wait_s` was 60 and the plan existed; GET "
-        f"/jobs afterwards lists {late} job(s) `running` with a plan, for good. Likely cause: "
-        "a late progress report (`PlanningPool._read_progress` -> `call_soon_threadsafe` -> "
-        "`PlanningService.on_progress`) runs after `_run` has set the job `done` but before "
-        "the task's done-callback removes it from `_tasks`, and writes `running` over `done`."
+        f"/jobs afterwards lists {late} job(s) `running` with a plan: a finished job was "
+        "reported as still running."
     ]
 
 
 # --- main -------------------------------------------------------------------------------------
 
 
-async def plan_phase(args: argparse.Namespace, service: Service) -> list[PlanLoad]:
+async def plan_phase(args: argparse.Namespace, service: ServiceProcess) -> list[PlanLoad]:
     case = load_case("case-6")
     async with api(service.url) as client:
         created = await ok(client.post("/scenarios", json=case.model_dump(mode="json")), 201)
@@ -711,7 +648,7 @@ async def plan_phase(args: argparse.Namespace, service: Service) -> list[PlanLoa
     return loads
 
 
-async def job_states(service: Service) -> Counter[str]:
+async def job_states(service: ServiceProcess) -> Counter[str]:
     """Every plan request has been answered: any job not `done` (or done without its plan)
     is a bookkeeping error worth reporting."""
     states: Counter[str] = Counter()
@@ -746,7 +683,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     return args
 
 
-async def run(args: argparse.Namespace, service: Service) -> tuple[list[PlanLoad], dict]:
+async def run(args: argparse.Namespace, service: ServiceProcess) -> tuple[list[PlanLoad], dict]:
     loads = await plan_phase(args, service)
     live = await live_phase(service, args.speedup, args.ws_seconds, args.ws_clients)
     return loads, live
@@ -761,7 +698,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     started = time.perf_counter()
     data_dir = Path(tempfile.mkdtemp(prefix="mvo-service-bench-"))
-    service = Service(data_dir)
+    service = ServiceProcess(data_dir, workers=2)  # the service's default
     service.start()
     try:
         loads, live = asyncio.run(run(args, service))

@@ -23,18 +23,21 @@ def free_port() -> int:
 class ServiceProcess:
     """Start, stop and restart the service on one data directory."""
 
-    def __init__(self, data_dir: Path, extra_env: dict[str, str] | None = None) -> None:
+    def __init__(
+        self, data_dir: Path, extra_env: dict[str, str] | None = None, workers: int = 1
+    ) -> None:
         self.data_dir = data_dir
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         self.env = {**os.environ, "MVO_GCS_TOKEN": TOKEN, **(extra_env or {})}
+        self.workers = workers
         self.process: subprocess.Popen[str] | None = None
         self.log = data_dir / "service.log"
 
     def start(self, timeout: float = 30.0) -> None:
         self.data_dir.mkdir(parents=True, exist_ok=True)
         command = [sys.executable, "-m", "gcs.cli", "serve", "--port", str(self.port),
-                   "--data-dir", str(self.data_dir), "--workers", "1"]
+                   "--data-dir", str(self.data_dir), "--workers", str(self.workers)]
         with self.log.open("a") as log:
             self.process = subprocess.Popen(
                 command, env=self.env, stdout=log, stderr=subprocess.STDOUT, text=True
@@ -51,6 +54,17 @@ class ServiceProcess:
             time.sleep(0.2)
         self.stop()
         raise TimeoutError(f"the service did not get ready: {self.log.read_text()[-2000:]}")
+
+    @property
+    def pid(self) -> int:
+        assert self.process is not None, "not started"
+        return self.process.pid
+
+    def problems(self) -> list[str]:
+        """Log lines that say something went wrong (errors, tracebacks, 5xx answers)."""
+        marks = ("ERROR", "Traceback", '" 500', '" 502', '" 503')
+        lines = self.log.read_text(errors="replace").splitlines()
+        return [line for line in lines if any(m in line for m in marks)]
 
     def stop(self) -> None:
         if self.process is None:
