@@ -18,9 +18,9 @@ import sys
 import time
 from pathlib import Path
 
-from gcs.link import LinkSettings, VehicleLink
-from gcs.mission_item import Autopilot, Command, Frame, Mission, MissionItem
-from gcs.mission_protocol import MissionClient
+from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
+from gcs.mavlink.mission_protocol import MissionClient
 from planner.experiments.machine import describe_machine
 from sitl_mock import Simulator, VehicleConfig
 

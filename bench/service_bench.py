@@ -39,8 +39,8 @@ import httpx
 import numpy as np
 from websockets.asyncio.client import ClientConnection, connect
 
-from gcs.api.schemas import PlanRequest
-from gcs.geodesy import GridFrame
+from gcs.mission.geodesy import GridFrame
+from gcs.service.api.schemas import PlanRequest
 from planner.cases import load_case
 from planner.experiments.machine import cpu_model
 from planner.pipeline import PlannerSettings, plan

@@ -28,9 +28,9 @@ import pytest
 from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
 from pymavlink import mavutil
 
-from gcs.mission_build import build_missions
-from gcs.mission_files import write_plan, write_waypoints
-from gcs.mission_item import Autopilot, Frame, Mission, MissionItem
+from gcs.mavlink.mission_item import Autopilot, Frame, Mission, MissionItem
+from gcs.mission.build import build_missions
+from gcs.mission.files import write_plan, write_waypoints
 from planner.cases import load_case
 from planner.pipeline import PlannerSettings, plan
 

@@ -14,7 +14,7 @@ import httpx
 import pytest
 from websockets.sync.client import ClientConnection, connect
 
-from gcs.geodesy import GridFrame
+from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
 from planner.scenario import Scenario
 from sitl_mock import Simulator, VehicleConfig

@@ -11,7 +11,7 @@ from typing import Any
 import httpx
 import numpy as np
 
-from gcs.geodesy import GridFrame
+from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
 from planner.trajectory import Trajectory
 from tests.e2e.test_case_vi_flight import fleet_at_starts

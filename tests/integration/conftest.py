@@ -7,8 +7,8 @@ from collections.abc import AsyncIterator, Callable, Iterator
 
 import pytest
 
-from gcs.link import LinkSettings, VehicleLink
-from gcs.mission_item import Autopilot, Command, Frame, Mission, MissionItem
+from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
 from sitl_mock import Faults, Simulator, VehicleConfig
 
 CMAC = (-35.363262, 149.165237, 584.0)

@@ -5,12 +5,12 @@ from __future__ import annotations
 import asyncio
 from dataclasses import dataclass
 
-from gcs.fleet import Fleet, FleetSettings, FlightReport
-from gcs.flight_monitor import metres_between
-from gcs.flight_pace import DEFAULT_MAX_SPEED_M_S, paced_flight
-from gcs.geodesy import GridFrame
-from gcs.link import LinkSettings, VehicleLink
-from gcs.mission_item import Autopilot
+from gcs.fleet.fleet import Fleet, FleetSettings, FlightReport
+from gcs.fleet.route_tracker import metres_between
+from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink.mission_item import Autopilot
+from gcs.mission.geodesy import GridFrame
+from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, paced_flight
 from planner.plan import Plan
 from planner.scenario import Scenario
 from sitl_mock import Simulator, VehicleConfig

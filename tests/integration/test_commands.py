@@ -6,15 +6,15 @@ import time
 
 import pytest
 
-from gcs.commands import Cmd, CommandPolicy, send_command
-from gcs.errors import (
+from gcs.mavlink.actions import FlightActions, ReadinessPolicy
+from gcs.mavlink.commands import Cmd, CommandPolicy, send_command
+from gcs.mavlink.errors import (
     CommandFailedError,
     CommandTimeoutError,
     CommandUnsupportedError,
 )
-from gcs.flight_actions import FlightActions, ReadinessPolicy
-from gcs.flight_modes import custom_mode
-from gcs.mission_item import Autopilot
+from gcs.mavlink.mission_item import Autopilot
+from gcs.mavlink.modes import custom_mode
 from sitl_mock import VehicleConfig
 
 from .conftest import CMAC

@@ -12,12 +12,12 @@ import functools
 
 import pytest
 
-from gcs.fleet import Fallback, Fleet, FleetSettings
-from gcs.fleet_events import Aborted, ItemReached, StartCancelled
-from gcs.flight_actions import ReadinessPolicy
-from gcs.link import VehicleLink
-from gcs.mission_build import build_missions
-from gcs.mission_item import Autopilot
+from gcs.fleet.events import Aborted, ItemReached, StartCancelled
+from gcs.fleet.fleet import Fallback, Fleet, FleetSettings
+from gcs.mavlink.actions import ReadinessPolicy
+from gcs.mavlink.link import VehicleLink
+from gcs.mavlink.mission_item import Autopilot
+from gcs.mission.build import build_missions
 from planner.cases import load_case
 from planner.experiments.scenario_generator import crossing_scenario
 from planner.pipeline import PlannerSettings, plan

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from gcs.cli import main
+from gcs.cli.main import main
 from planner.cases import load_case
 from sitl_mock import Simulator
 

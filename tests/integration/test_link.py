@@ -6,11 +6,11 @@ import asyncio
 
 import pytest
 
-from gcs.errors import ConnectTimeoutError, WaitTimeoutError
-from gcs.link import LinkSettings, VehicleLink
-from gcs.mavlink_connection import MavConnection
-from gcs.mission_item import Autopilot
-from gcs.mission_protocol import MissionClient
+from gcs.mavlink.connection import MavConnection
+from gcs.mavlink.errors import ConnectTimeoutError, WaitTimeoutError
+from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink.mission_item import Autopilot
+from gcs.mavlink.mission_protocol import MissionClient
 
 from .conftest import FAST_LINK, square_mission, vehicle
 from .udp_relay import UdpRelay

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import pytest
 
-from gcs.errors import (
+from gcs.mavlink.errors import (
     GcsError,
     LinkLostError,
     MissionDeniedError,
@@ -19,8 +19,8 @@ from gcs.errors import (
     MissionTimeoutError,
     NoSpaceError,
 )
-from gcs.mission_item import Autopilot, Command, Mission, MissionItem
-from gcs.mission_protocol import MissionClient, TransferPolicy
+from gcs.mavlink.mission_item import Autopilot, Command, Mission, MissionItem
+from gcs.mavlink.mission_protocol import MissionClient, TransferPolicy
 from sitl_mock import Faults, VehicleConfig
 
 from .conftest import CMAC, FAST_LINK, square_mission, vehicle

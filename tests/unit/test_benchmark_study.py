@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gcs.cli import main
+from gcs.cli.main import main
 from planner.experiments.benchmark_runs import RunRecord, RunSpec, run_one
 from planner.experiments.benchmark_study import StudyConfig, run_study
 from planner.experiments.executor import run_all

@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs.cli import main
+from gcs.cli.main import main
 from planner.experiments.case_plots import padded_histories
 from planner.experiments.case_runs import CaseRecord, CaseSpec, run_case
 from planner.experiments.case_study import CaseStudyConfig, run_case_study

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from gcs.cli import build_parser
+from gcs.cli.main import build_parser
 
 DOCKER = Path(__file__).resolve().parents[2] / "docker"
 DOCKERFILES = sorted(DOCKER.glob("*.Dockerfile"))

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs.cli import main
+from gcs.cli.main import main
 from planner.experiments.library_comparison import BenchDependencyError
 
 HAVE_BENCH = all(importlib.util.find_spec(m) for m in ("mealpy", "EvoloPy", "scipy"))

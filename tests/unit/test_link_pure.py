@@ -5,19 +5,19 @@ from __future__ import annotations
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs.errors import (
+from gcs.mavlink.actions import is_not_ready
+from gcs.mavlink.errors import (
     CommandDeniedError,
     CommandFailedError,
     CommandTemporarilyRejectedError,
     CommandUnsupportedError,
     LinkError,
 )
-from gcs.errors import command_error as to_command_error
-from gcs.flight_actions import is_not_ready
-from gcs.flight_modes import UnknownModeError, custom_mode, mode_name, px4_custom_mode
-from gcs.mission_item import Autopilot
-from gcs.transport import Endpoint
-from gcs.vehicle_state import LandedState, VehicleState
+from gcs.mavlink.errors import command_error as to_command_error
+from gcs.mavlink.mission_item import Autopilot
+from gcs.mavlink.modes import UnknownModeError, custom_mode, mode_name, px4_custom_mode
+from gcs.mavlink.transport import Endpoint
+from gcs.mavlink.vehicle_state import LandedState, VehicleState
 
 CODEC = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
 

@@ -18,8 +18,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gcs.geodesy import GridFrame
-from gcs.mission_build import (
+from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission
+from gcs.mission.build import (
     Route,
     build_mission,
     build_missions,
@@ -27,7 +27,7 @@ from gcs.mission_build import (
     fly_ideally,
     mission_schedule,
 )
-from gcs.mission_item import Autopilot, Command, Frame, Mission
+from gcs.mission.geodesy import GridFrame
 from planner.cases import CASES, load_case
 from planner.pipeline import PlannerSettings, plan
 from planner.safety import check_plan

@@ -11,8 +11,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymavlink import mavwp
 
-from gcs.mission_build import build_missions
-from gcs.mission_files import (
+from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
+from gcs.mission.build import build_missions
+from gcs.mission.files import (
     MissionFileError,
     parse_plan,
     parse_waypoints,
@@ -23,7 +24,6 @@ from gcs.mission_files import (
     write_plan,
     write_waypoints,
 )
-from gcs.mission_item import Autopilot, Command, Frame, Mission, MissionItem
 from planner.cases import CASES, load_case
 from planner.pipeline import PlannerSettings, plan
 

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from gcs.errors import (
+from gcs.fleet.route_tracker import VehicleProgress
+from gcs.fleet.schedule_keeper import KeepingPolicy, decide
+from gcs.mavlink.errors import (
     InvalidParamError,
     MissionCancelledError,
     MissionDeniedError,
@@ -15,9 +17,7 @@ from gcs.errors import (
     UnsupportedFrameError,
     mission_error,
 )
-from gcs.flight_monitor import VehicleProgress
-from gcs.mission_protocol import TransferPolicy
-from gcs.schedule_keeper import KeepingPolicy, decide
+from gcs.mavlink.mission_protocol import TransferPolicy
 
 
 @pytest.mark.parametrize(

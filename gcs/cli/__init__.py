@@ -1,0 +1,1 @@
+"""The `mvo-gcs` command line."""

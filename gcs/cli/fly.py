@@ -1,0 +1,170 @@
+"""`mvo-gcs fly`: plan a scenario, upload the missions, fly them together and follow.
+
+UAV k of the scenario flies on the k-th connection of `--vehicles`. The plan is flown
+slower than planned when its legs are faster than `--max-speed` (every time stretched
+by one factor: see `flight_pace`). At the end the separation actually flown, from the
+vehicles' reported positions, is printed against the plan's 2R. Scenario and plan
+errors exit 2, a vehicle failure or a flown separation under 2R exits 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import sys
+
+from gcs.cli.planning_options import (
+    ScenarioFileError,
+    add_planning_arguments,
+    planner_settings,
+    read_scenario,
+)
+from gcs.cli.progress_display import ProgressDisplay
+from gcs.fleet.fleet import Fallback, Fleet, FleetSettings, FlightReport
+from gcs.mavlink.errors import GcsError
+from gcs.mavlink.link import VehicleLink
+from gcs.mavlink.mission_item import Mission
+from gcs.mission.build import DEFAULT_ALTITUDE_M
+from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, TURN_RADIUS_M, paced_flight
+from planner.plan import Plan
+from planner.scenario import Scenario
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_planning_arguments(parser)
+    parser.add_argument(
+        "--vehicles",
+        required=True,
+        help="comma-separated connection strings, one per UAV in scenario order "
+        "(udpout:HOST:PORT, udpin:HOST:PORT, tcp:HOST:PORT)",
+    )
+    parser.add_argument(
+        "--altitude",
+        type=float,
+        default=DEFAULT_ALTITUDE_M,
+        help="metres above home (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--max-speed",
+        type=float,
+        default=DEFAULT_MAX_SPEED_M_S,
+        help="fly the plan no faster than this, m/s (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--turn-radius",
+        type=float,
+        default=TURN_RADIUS_M,
+        help="waypoint acceptance radius, m: how much a turn may cut its "
+        "corner (default: %(default)s)",
+    )
+    parser.add_argument("--finish", choices=["land", "rtl"], default="land")
+    parser.add_argument(
+        "--on-failure",
+        choices=[f.value for f in Fallback],
+        default="land",
+        help="what the other vehicles do if one fails (default: %(default)s)",
+    )
+    parser.add_argument("--connect-timeout", type=float, default=15.0)
+
+
+def run(args: argparse.Namespace) -> int:
+    scenario = read_scenario(args.scenario)
+    urls = [u.strip() for u in args.vehicles.split(",") if u.strip()]
+    if len(urls) != len(scenario.uavs):
+        raise ScenarioFileError(
+            f"{len(scenario.uavs)} UAVs in {scenario.name} but {len(urls)} vehicles given"
+        )
+    if scenario.origin is None:
+        raise ScenarioFileError(f"scenario {scenario.name} has no origin: it cannot be flown")
+    plan = _plan(scenario, args)
+    if not plan.feasible:
+        raise ScenarioFileError(f"no safe plan for {scenario.name}: {plan.conflicts[:1]}")
+    try:
+        return asyncio.run(_fly(scenario, plan, urls, args))
+    except GcsError as exc:
+        print(f"mvo-gcs fly: {exc}", file=sys.stderr)
+        return 1
+
+
+def _plan(scenario: Scenario, args: argparse.Namespace) -> Plan:
+    from planner.pipeline import plan
+
+    print(f"planning {scenario.name} with {args.algorithm} ...", flush=True)
+    return plan(scenario, planner_settings(args))
+
+
+async def _fly(scenario: Scenario, plan: Plan, urls: list[str], args: argparse.Namespace) -> int:
+    links = await _connect(scenario, urls, args.connect_timeout)
+    try:
+        missions = _missions(plan, scenario, links, args)
+        fleet = Fleet(links, missions, settings=FleetSettings(fallback=Fallback(args.on_failure)))
+        display = ProgressDisplay()
+        watcher = asyncio.create_task(_show(fleet, display))
+        report = await fleet.fly()
+        await asyncio.wait_for(watcher, 5.0)
+        return _summary(report, plan, scenario)
+    finally:
+        await asyncio.gather(*(link.close() for link in links.values()))
+
+
+async def _connect(scenario: Scenario, urls: list[str], timeout: float) -> dict[str, VehicleLink]:
+    from gcs.mavlink.link import LinkSettings
+
+    settings = LinkSettings(connect_timeout_s=timeout)
+    tasks = [VehicleLink.connect(url, settings=settings) for url in urls]
+    results = await asyncio.gather(*tasks, return_exceptions=True)
+    links, problems = {}, []
+    for uav, url, result in zip(scenario.uavs, urls, results, strict=True):
+        if isinstance(result, BaseException):
+            problems.append(f"{uav.id} ({url}): {result}")
+        else:
+            links[uav.id] = result
+            print(f"{uav.id}: {result.autopilot.name} sysid {result.sysid} on {url}", flush=True)
+    if problems:
+        await asyncio.gather(*(link.close() for link in links.values()))
+        raise GcsError("cannot reach every vehicle: " + "; ".join(problems))
+    return links
+
+
+def _missions(
+    plan: Plan, scenario: Scenario, links: dict[str, VehicleLink], args: argparse.Namespace
+) -> dict[str, Mission]:
+    paced = paced_flight(
+        plan,
+        scenario,
+        {uav: link.autopilot for uav, link in links.items()},
+        altitude_m=args.altitude,
+        finish=args.finish,
+        max_speed_m_s=args.max_speed,
+        turn_radius_m=args.turn_radius,
+    )
+    if paced.factor > 1:
+        print(f"flying {paced.factor:.1f}x slower than planned (max {args.max_speed} m/s)")
+    return paced.missions
+
+
+async def _show(fleet: Fleet, display: ProgressDisplay) -> None:
+    async for event in fleet.events():
+        display.show(event)
+
+
+def _summary(report: FlightReport, plan: Plan, scenario: Scenario) -> int:
+    radius = max(u.radius for u in scenario.uavs) * scenario.grid.cell_size_m
+    planned = plan.metrics.min_separation
+    planned_m = f"{planned * scenario.grid.cell_size_m:.2f} m" if planned is not None else "-"
+    flown = report.min_separation_m
+    flown_text = (
+        f"{flown:.2f} m between {' and '.join(report.closest_pair or ())}"
+        if (flown is not None)
+        else "- (fewer than two vehicles airborne together)"
+    )
+    print(f"separation flown: {flown_text}; plan: {planned_m}; required 2R: {2 * radius:.2f} m")
+    for uav, why in report.failed.items():
+        print(f"{uav}: {why}", file=sys.stderr)
+    if not report.completed:
+        print("mvo-gcs fly: the flight did not complete", file=sys.stderr)
+        return 1
+    if flown is not None and flown < 2 * radius:
+        print("mvo-gcs fly: the vehicles came closer than 2R", file=sys.stderr)
+        return 1
+    return 0

@@ -1,0 +1,256 @@
+"""`mvo-gcs`: the command line of the product."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from gcs.cli.planning_options import (
+    ScenarioFileError,
+    add_planning_arguments,
+    planner_settings,
+    positive_int,
+    read_scenario,
+)
+from planner.cases import CASES, PAPER_POPULATIONS
+from planner.experiments.library_comparison import BenchDependencyError
+from planner.optimizers import ALGORITHMS, ObjectiveError, OptimizerInputError
+
+USER_ERRORS = (OptimizerInputError, ObjectiveError, BenchDependencyError, ScenarioFileError)
+"""Errors a user can cause: reported in one line, exit code 2, no traceback."""
+
+
+def _add_executor_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="local worker processes (default: one per core)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="run on this Dask scheduler (e.g. tcp://127.0.0.1:8786) instead of a local pool",
+    )
+
+
+def _reproduce_benchmarks(args: argparse.Namespace) -> int:
+    from planner.experiments.benchmark_study import StudyConfig, run_study
+
+    config = StudyConfig(
+        seeds=args.seeds,
+        figure_seeds=min(args.seeds, 10),
+        iterations=args.iterations,
+        tolerances=tuple(args.tolerance),
+        quick=args.quick,
+        algorithms=tuple(args.algorithms),
+    )
+    report = run_study(config, args.out, workers=args.workers, scheduler=args.scheduler)
+    print(f"wrote {report}")
+    return 0
+
+
+def _reproduce_cases(args: argparse.Namespace) -> int:
+    from planner.experiments.case_study import CaseStudyConfig, run_case_study
+
+    config = CaseStudyConfig(
+        seeds=args.seeds,
+        iterations=args.iterations,
+        populations=tuple(dict.fromkeys(args.populations)),
+        algorithms=tuple(dict.fromkeys(args.algorithms)),
+        objective=args.objective,
+        cases=tuple(dict.fromkeys(args.cases)),
+    )
+    report = run_case_study(config, args.out, workers=args.workers, scheduler=args.scheduler)
+    print(f"wrote {report}")
+    return 0
+
+
+def _bench_optimizers(args: argparse.Namespace) -> int:
+    from planner.experiments.library_comparison import ComparisonConfig, run_comparison
+
+    config = ComparisonConfig(
+        seeds=args.seeds,
+        iterations=args.iterations,
+        population=args.population,
+        dim=args.dim,
+        algorithms=tuple(args.algorithms),
+    )
+    out = run_comparison(config, args.out)
+    print(f"wrote {out}")
+    return 0
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from planner.pipeline import plan
+
+    scenario = read_scenario(args.scenario)
+    result = plan(scenario, planner_settings(args))
+    text = result.model_dump_json(indent=2)
+    if args.output:
+        args.output.write_text(text + "\n")
+    else:
+        print(text)
+    m = result.metrics
+    summary = (
+        f"{scenario.name}: {'feasible' if result.feasible else 'NOT feasible'}, "
+        f"{m.conflicts} conflicts, total length {m.total_length:.2f} cells, "
+        f"mean deviation {m.mean_deviation:.2f}, {m.nfe} evaluations, {m.seconds:.2f} s"
+    )
+    print(summary, file=sys.stderr)
+    for conflict in result.conflicts:
+        print(f"  conflict: {conflict['message']}", file=sys.stderr)
+    return 0 if result.feasible else 1
+
+
+def _bench_planner(args: argparse.Namespace) -> int:
+    from planner.experiments.planner_bench import PlannerBenchConfig, run_planner_bench
+
+    config = PlannerBenchConfig(
+        scenarios=args.scenarios,
+        first_seed=args.first_seed,
+        algorithm=args.algorithm,
+        population=args.population,
+        iterations=args.iterations,
+        workers=args.workers,
+    )
+    print(f"wrote {run_planner_bench(config, args.out)}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mvo-gcs", description="MVO multi-UAV path planning and ground station"
+    )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    reproduce = commands.add_parser("reproduce", help="reproduce the paper's tables and figures")
+    studies = reproduce.add_subparsers(dest="study", required=True, metavar="STUDY")
+    bench_fns = studies.add_parser(
+        "benchmarks",
+        help="Table II (NFE to the optimum) and Fig. 1 (convergence) on benchmark functions",
+    )
+    bench_fns.add_argument("--out", type=Path, required=True, help="output directory")
+    bench_fns.add_argument("--seeds", type=positive_int, default=30)
+    bench_fns.add_argument("--iterations", type=positive_int, default=1000)
+    bench_fns.add_argument(
+        "--tolerance",
+        type=float,
+        nargs="+",
+        default=[1e-8, 1e-2],
+        help="a run reaches the optimum when its best cost is within this of it; "
+        "one Table II per value, the first is the headline (default: 1e-8 1e-2)",
+    )
+    bench_fns.add_argument(
+        "--quick", action="store_true", help="a smaller Fig. 1 grid (fewer dimensions and sizes)"
+    )
+    bench_fns.add_argument(
+        "--algorithms", nargs="+", choices=sorted(ALGORITHMS), default=list(ALGORITHMS)
+    )
+    _add_executor_options(bench_fns)
+    bench_fns.set_defaults(handler=_reproduce_benchmarks)
+
+    cases = studies.add_parser(
+        "cases",
+        help="Table III and Figs. 3-5: the paper's six cases planned by every algorithm",
+    )
+    cases.add_argument("--out", type=Path, required=True, help="output directory")
+    cases.add_argument("--seeds", type=positive_int, default=30)
+    cases.add_argument("--iterations", type=positive_int, default=1000)
+    cases.add_argument(
+        "--populations", type=positive_int, nargs="+", default=list(PAPER_POPULATIONS)
+    )
+    cases.add_argument(
+        "--algorithms", nargs="+", choices=sorted(ALGORITHMS), default=list(ALGORITHMS)
+    )
+    cases.add_argument(
+        "--objective",
+        choices=["paper", "qos"],
+        default="paper",
+        help="eq. (10) as in the paper (default), or the product's qos objective",
+    )
+    cases.add_argument(
+        "--cases", nargs="+", choices=CASES, default=list(CASES), help="default: all six"
+    )
+    _add_executor_options(cases)
+    cases.set_defaults(handler=_reproduce_cases)
+
+    plan = commands.add_parser(
+        "plan", help="plan collision-free paths for a scenario; exit 1 if no safe plan"
+    )
+    add_planning_arguments(plan)
+    plan.add_argument("-o", "--output", type=Path, help="write the plan here (default: stdout)")
+    plan.set_defaults(handler=_plan)
+
+    bench = commands.add_parser("bench", help="speed benchmarks (results under bench/)")
+    benches = bench.add_subparsers(dest="bench", required=True, metavar="BENCH")
+    libs = benches.add_parser(
+        "optimizers",
+        help="our six optimizers against mealpy and EvoloPy (needs the 'bench' extra)",
+    )
+    libs.add_argument("--out", type=Path, default=Path("bench/results/optimizers.md"))
+    libs.add_argument("--seeds", type=positive_int, default=10)
+    libs.add_argument("--iterations", type=positive_int, default=1000)
+    libs.add_argument("--population", type=positive_int, default=30)
+    libs.add_argument("--dim", type=positive_int, default=30)
+    libs.add_argument(
+        "--algorithms", nargs="+", choices=sorted(ALGORITHMS), default=list(ALGORITHMS)
+    )
+    libs.set_defaults(handler=_bench_optimizers)
+
+    paths = benches.add_parser(
+        "planner", help="the path planner's targets: six cases, speed, 100 generated scenarios"
+    )
+    paths.add_argument("--out", type=Path, default=Path("bench/results/planner.md"))
+    paths.add_argument("--scenarios", type=positive_int, default=100)
+    paths.add_argument("--first-seed", type=int, default=0)
+    paths.add_argument("--algorithm", choices=sorted(ALGORITHMS), default="mvo")
+    paths.add_argument("--population", type=positive_int, default=30)
+    paths.add_argument("--iterations", type=positive_int, default=1000)
+    paths.add_argument(
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="processes for the generated scenarios (timed sections always run alone)",
+    )
+    paths.set_defaults(handler=_bench_planner)
+    _add_module_commands(commands)
+    return parser
+
+
+MODULE_COMMANDS = {
+    "sitl": ("sitl_mock.cli", "run simulated MAVLink vehicles (ArduCopter or PX4 flavour)"),
+    "fly": ("gcs.cli.fly", "plan a scenario, upload it to vehicles and fly it"),
+    "serve": ("gcs.cli.serve", "run the planning service (REST + WebSocket)"),
+    "demo": ("gcs.cli.demo", "run the service with mock vehicles, ready for case VI"),
+}
+"""Commands whose options live beside their code: each module has `add_arguments(parser)`
+and `run(args) -> int`."""
+
+
+def _add_module_commands(commands: argparse._SubParsersAction) -> None:
+    for name, (module_name, help_text) in MODULE_COMMANDS.items():
+        module = importlib.import_module(module_name)
+        sub = commands.add_parser(name, help=help_text, description=help_text)
+        module.add_arguments(sub)
+        sub.set_defaults(handler=module.run)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.handler(args)
+    except USER_ERRORS as exc:
+        parser.exit(2, f"{parser.prog}: error: {exc}\n")
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

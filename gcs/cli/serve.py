@@ -1,0 +1,49 @@
+"""`mvo-gcs serve`: the planning service alone, for real vehicles."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import uvicorn
+
+from gcs.service.api.app import create_app
+from gcs.service.settings import Settings
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--host", default=None, help="bind address (default 127.0.0.1)")
+    parser.add_argument("--port", type=int, default=None, help="TCP port (default 8000)")
+    parser.add_argument(
+        "--data-dir",
+        type=Path,
+        default=None,
+        help="where the SQLite file and the token live (default ./mvo-gcs-data)",
+    )
+    parser.add_argument(
+        "--workers", type=int, default=None, help="planning processes (default 2)"
+    )
+
+
+def settings_from(args: argparse.Namespace) -> Settings:
+    """Flags override `MVO_GCS_*` environment variables, which override defaults."""
+    given = {
+        "host": args.host,
+        "port": args.port,
+        "data_dir": args.data_dir,
+        "plan_workers": args.workers,
+    }
+    return Settings(**{k: v for k, v in given.items() if v is not None})
+
+
+def run(args: argparse.Namespace) -> int:
+    settings = settings_from(args)
+    serve(settings)
+    return 0
+
+
+def serve(settings: Settings) -> None:
+    app = create_app(settings)
+    config = uvicorn.Config(app, host=settings.host, port=settings.port, log_level="info")
+    server = uvicorn.Server(config)
+    server.run()

@@ -1,0 +1,1 @@
+"""A fleet flight: several vehicles flying one plan together."""

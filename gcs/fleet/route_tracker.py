@@ -1,0 +1,190 @@
+"""Where each vehicle is on its plan: the item it flies to, its distance, ETA and lag.
+
+The plan's clock runs on the vehicle's own clock (time_boot_ms, which a simulator
+speeds up with everything else) from the moment its mission was started. A vehicle's
+plan time is the moment of the ideal flight (`mission_build.fly_ideally`) that matches
+its position: along the leg it is flying, or inside the hold it is doing. Lag is the
+plan clock minus that plan time: positive when the vehicle is behind its schedule.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from gcs.mavlink.vehicle_state import VehicleState
+from gcs.mission.build import Visit
+
+EARTH_RADIUS_M = 6_371_008.8
+ARRIVED_M = 2.5  # within this of a hold waypoint and nearly still: the hold has begun
+STILL_M_S = 0.5
+
+
+def metres_between(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
+    """Horizontal distance; equirectangular, exact to millimetres over a few hundred metres."""
+    north = math.radians(lat2 - lat1) * EARTH_RADIUS_M
+    east = math.radians(lon2 - lon1) * EARTH_RADIUS_M * math.cos(math.radians((lat1 + lat2) / 2))
+    return math.hypot(east, north)
+
+
+@dataclass(frozen=True)
+class VehicleProgress:
+    uav_id: str
+    sysid: int
+    mode: str
+    armed: bool
+    airborne: bool
+    link_up: bool
+    lat: float | None
+    lon: float | None
+    alt_m: float | None
+    current_seq: int
+    reached: int  # NAV items of the plan passed so far
+    items: int  # NAV items of the plan after take-off
+    distance_to_next_m: float | None
+    eta_s: float | None  # at the current ground speed
+    scheduled_next_s: float | None  # plan time the next item is due
+    clock_s: float  # the plan's clock for this vehicle
+    plan_time_s: float  # where the vehicle is on its plan
+    lag_s: float  # clock_s - plan_time_s: seconds behind schedule
+    paused: bool
+    holding: bool  # waiting at a waypoint as the plan says
+    landing: bool  # over its last place, coming down: out of the plan's picture
+    finished: bool
+
+
+class RouteTracker:
+    """Follows one vehicle along its ideal flight."""
+
+    def __init__(self, uav_id: str, visits: list[Visit], origin: tuple[float, float]) -> None:
+        self.uav_id = uav_id
+        self.visits = visits
+        self.origin = origin  # where plan time 0 is: over the take-off point
+        self.start_boot_ms: int | None = None
+        self._passed_at: dict[int, float] = {}  # visit index -> plan clock when passed
+        self._arrived_at: dict[int, float] = {}  # hold visit index -> plan clock on arrival
+
+    def start(self, time_boot_ms: int) -> None:
+        self.start_boot_ms = time_boot_ms
+
+    def clock(self, state: VehicleState) -> float:
+        if self.start_boot_ms is None:
+            return 0.0
+        return max(0.0, (state.time_boot_ms - self.start_boot_ms) / 1000.0)
+
+    def newly_passed(self, state: VehicleState) -> list[int]:
+        """Indices of visits passed since the last call (for ItemReached events)."""
+        clock = self.clock(state)
+        fresh = []
+        for k, visit in enumerate(self.visits):
+            if k in self._passed_at:
+                continue
+            if visit.seq in state.reached or visit.seq < state.mission_seq:
+                self._passed_at[k] = clock
+                fresh.append(k)
+            else:
+                break
+        return fresh
+
+    def passed_at(self, index: int) -> float:
+        return self._passed_at[index]
+
+    def finished(self, state: VehicleState) -> bool:
+        return len(self._passed_at) == len(self.visits) and not state.airborne
+
+    def landing(self, state: VehicleState) -> bool:
+        """Over the last place with only the landing left, or landed (the plan ends there)."""
+        done = len(self._passed_at)
+        if done == len(self.visits):
+            return True
+        if done != len(self.visits) - 1 or state.position is None:
+            return False
+        last = self.visits[-1]
+        near = metres_between(state.position.lat, state.position.lon, last.lat, last.lon)
+        return near <= ARRIVED_M
+
+    def holding(self, state: VehicleState) -> bool:
+        done = len(self._passed_at)
+        if done == len(self.visits):
+            return False
+        last = self.visits[done - 1] if done else None
+        return (
+            last is not None and last.seq == state.mission_seq and last.leave > last.arrive
+        ) or self._has_arrived(done, state)
+
+    def plan_time(self, state: VehicleState) -> float:
+        done = len(self._passed_at)
+        if not self.visits or self.start_boot_ms is None:
+            return 0.0
+        if done == len(self.visits):
+            return self.visits[-1].leave
+        last = self.visits[done - 1] if done else None
+        if last is not None and last.seq == state.mission_seq and last.leave > last.arrive:
+            # ArduCopter reports a hold waypoint reached on arrival and stays on it
+            return self._holding(last, self._passed_at[done - 1], state)
+        if self._has_arrived(done, state):
+            return self._holding(self.visits[done], self._arrived_at[done], state)
+        return self._along_leg(state, done)
+
+    def _has_arrived(self, index: int, state: VehicleState) -> bool:
+        """At a hold waypoint not yet reported reached (a vehicle reporting it on leaving)."""
+        visit = self.visits[index]
+        if index in self._arrived_at:
+            return True
+        if visit.leave <= visit.arrive or state.position is None:
+            return False
+        near = metres_between(state.position.lat, state.position.lon, visit.lat, visit.lon)
+        if near <= ARRIVED_M and state.groundspeed_m_s <= STILL_M_S:
+            self._arrived_at[index] = self.clock(state)
+            return True
+        return False
+
+    def _holding(self, visit: Visit, since: float, state: VehicleState) -> float:
+        held = max(0.0, self.clock(state) - since)
+        return min(visit.leave, visit.arrive + held)
+
+    def _along_leg(self, state: VehicleState, index: int) -> float:
+        target = self.visits[index]
+        if index:
+            prev = self.visits[index - 1]
+            start, leave = (prev.lat, prev.lon), prev.leave
+        else:
+            start, leave = self.origin, 0.0
+        if state.position is None:
+            return leave
+        leg = metres_between(*start, target.lat, target.lon)
+        left = metres_between(state.position.lat, state.position.lon, target.lat, target.lon)
+        fraction = 1.0 if leg <= 0 else min(1.0, max(0.0, 1.0 - left / leg))
+        return leave + fraction * (target.arrive - leave)
+
+    def progress(self, state: VehicleState, paused: bool) -> VehicleProgress:
+        done = len(self._passed_at)
+        nxt = self.visits[done] if done < len(self.visits) else None
+        pos = state.position
+        distance = metres_between(pos.lat, pos.lon, nxt.lat, nxt.lon) if pos and nxt else None
+        speed = state.groundspeed_m_s
+        clock, plan_time = self.clock(state), self.plan_time(state)
+        return VehicleProgress(
+            uav_id=self.uav_id,
+            sysid=state.sysid,
+            mode=state.mode,
+            armed=state.armed,
+            airborne=state.airborne,
+            link_up=state.link_up,
+            lat=pos.lat if pos else None,
+            lon=pos.lon if pos else None,
+            alt_m=pos.relative_alt_m if pos else None,
+            current_seq=state.mission_seq,
+            reached=done,
+            items=len(self.visits),
+            distance_to_next_m=distance,
+            eta_s=distance / speed if distance is not None and speed > 0.2 else None,
+            scheduled_next_s=nxt.arrive if nxt else None,
+            clock_s=clock,
+            plan_time_s=plan_time,
+            lag_s=clock - plan_time if self.start_boot_ms is not None else 0.0,
+            paused=paused,
+            holding=self.holding(state),
+            landing=self.landing(state),
+            finished=self.finished(state),
+        )

@@ -1,0 +1,62 @@
+"""Keeping vehicles on one clock: who waits for whom when someone falls behind.
+
+The plan is safe only if every vehicle is where the plan says at the same moment.
+A vehicle that falls behind its schedule by more than `pause_margin_s` relative to
+another makes that other one wait (DO_PAUSE_CONTINUE) until it has caught up to
+within `resume_margin_s`. Kept simple: the vehicles that wait are those ahead of the
+laggard and within `meet_distance_m` of it now (None: every vehicle ahead); a vehicle
+holding at a waypoint is left alone, it is waiting already (and an autopilot may
+restart the hold on resume).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from gcs.fleet.route_tracker import VehicleProgress, metres_between
+
+
+@dataclass(frozen=True)
+class KeepingPolicy:
+    pause_margin_s: float = 1.5
+    resume_margin_s: float = 0.3
+    meet_distance_m: float | None = 30.0
+
+
+@dataclass(frozen=True)
+class KeepingDecision:
+    pause: frozenset[str] = field(default_factory=frozenset)
+    resume: frozenset[str] = field(default_factory=frozenset)
+    laggard: str | None = None
+    laggard_lag_s: float = 0.0
+
+
+def decide(
+    progress: list[VehicleProgress], paused: set[str], policy: KeepingPolicy
+) -> KeepingDecision:
+    """Which vehicles to pause and which to resume now."""
+    flying = [p for p in progress if not (p.finished or p.landing) and p.link_up]
+    if not flying:
+        return KeepingDecision(resume=frozenset(paused))
+    laggard = max(flying, key=lambda p: p.lag_s)
+    pause, resume = set(), set()
+    for p in flying:
+        ahead_by = laggard.lag_s - p.lag_s
+        if (
+            p.uav_id not in paused
+            and ahead_by > policy.pause_margin_s
+            and not p.holding
+            and _near(p, laggard, policy.meet_distance_m)
+        ):
+            pause.add(p.uav_id)
+        elif p.uav_id in paused and ahead_by <= policy.resume_margin_s:
+            resume.add(p.uav_id)
+    flying_ids = {p.uav_id for p in flying}
+    resume |= {uav for uav in paused if uav not in flying_ids}  # finished or lost: let go
+    return KeepingDecision(frozenset(pause), frozenset(resume), laggard.uav_id, laggard.lag_s)
+
+
+def _near(a: VehicleProgress, b: VehicleProgress, limit_m: float | None) -> bool:
+    if limit_m is None or None in (a.lat, a.lon, b.lat, b.lon):
+        return True
+    return metres_between(a.lat, a.lon, b.lat, b.lon) <= limit_m  # type: ignore[arg-type]

@@ -1,0 +1,86 @@
+"""The separation actually flown, from the positions the vehicles report.
+
+Each position report is compared with the latest report of every other airborne
+vehicle, moved forward by that vehicle's velocity over the time since it was heard
+(on the vehicles' clock, which a simulator may run faster than the wall clock), so
+that the two positions describe the same moment.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from gcs.fleet.route_tracker import EARTH_RADIUS_M
+
+
+@dataclass
+class _Fix:
+    east: float
+    north: float
+    v_east: float
+    v_north: float
+    wall: float
+    boot_ms: int
+    rate: float  # vehicle seconds per wall second
+
+
+@dataclass(frozen=True)
+class Closest:
+    distance_m: float
+    pair: tuple[str, str]
+    wall_time: float
+
+
+class SeparationTracker:
+    """Minimum horizontal distance between airborne vehicles over a flight."""
+
+    def __init__(self, lat0: float, lon0: float) -> None:
+        self._lat0, self._lon0 = lat0, lon0
+        self._cos0 = math.cos(math.radians(lat0))
+        self._fixes: dict[str, _Fix] = {}
+        self._first: dict[str, tuple[float, int]] = {}
+        self.closest: Closest | None = None
+
+    def update(
+        self,
+        uav_id: str,
+        lat: float,
+        lon: float,
+        velocity_n_e: tuple[float, float],
+        airborne: bool,
+        wall: float,
+        boot_ms: int,
+    ) -> None:
+        if not airborne:
+            self._fixes.pop(uav_id, None)
+            return
+        east = math.radians(lon - self._lon0) * EARTH_RADIUS_M * self._cos0
+        north = math.radians(lat - self._lat0) * EARTH_RADIUS_M
+        fix = _Fix(
+            east,
+            north,
+            velocity_n_e[1],
+            velocity_n_e[0],
+            wall,
+            boot_ms,
+            self._clock_rate(uav_id, wall, boot_ms),
+        )
+        self._fixes[uav_id] = fix
+        for other_id, other in self._fixes.items():
+            if other_id != uav_id:
+                self._compare(uav_id, fix, other_id, other)
+
+    def _clock_rate(self, uav_id: str, wall: float, boot_ms: int) -> float:
+        first_wall, first_boot = self._first.setdefault(uav_id, (wall, boot_ms))
+        if wall - first_wall < 1.0 or boot_ms < first_boot:
+            return 1.0
+        return (boot_ms - first_boot) / 1000.0 / (wall - first_wall)
+
+    def _compare(self, uav_id: str, fix: _Fix, other_id: str, other: _Fix) -> None:
+        dt = (fix.wall - other.wall) * other.rate
+        east = other.east + other.v_east * dt
+        north = other.north + other.v_north * dt
+        distance = math.hypot(fix.east - east, fix.north - north)
+        if self.closest is None or distance < self.closest.distance_m:
+            self.closest = Closest(distance, tuple(sorted((uav_id, other_id))), fix.wall)

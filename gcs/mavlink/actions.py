@@ -1,0 +1,151 @@
+"""What the ground station asks one vehicle to do: modes, arming, take-off, mission start.
+
+The sequence is the one real ArduCopter needs from the ground: GUIDED, wait for the
+position estimate (arming fails with "PreArm: ..." / "Need Position Estimate" until
+then, so those failures mean "not yet" and are retried within a bound), arm, take off
+at once (an idle armed copter disarms after 10 s), then AUTO and MISSION_START.
+PX4 takes DO_SET_MODE with its main and sub mode in param2 and param3.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from dataclasses import dataclass
+
+from gcs.mavlink.commands import Cmd, CommandAck, CommandPolicy, send_command
+from gcs.mavlink.errors import (
+    CommandFailedError,
+    CommandTemporarilyRejectedError,
+    FlightError,
+    WaitTimeoutError,
+)
+from gcs.mavlink.link import VehicleLink
+from gcs.mavlink.mission_item import Autopilot
+from gcs.mavlink.modes import PX4_MODES, custom_mode
+
+MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
+NOT_READY_HINTS = (
+    "prearm",
+    "need position",
+    "position estimate",
+    "requires position",
+    "mode change failed",
+    "ekf",
+    "gps",
+    "not ready",
+    "waiting",
+)
+
+
+@dataclass(frozen=True)
+class ReadinessPolicy:
+    """Bounds of the slow steps; in wall-clock seconds."""
+
+    arm_timeout_s: float = 90.0  # real SITL needs ~40 s for the EKF to use GPS
+    arm_retry_period_s: float = 1.0
+    climb_timeout_s: float = 60.0
+    altitude_tolerance: float = 0.95  # "at altitude" from this fraction of the target
+
+
+def is_not_ready(exc: Exception) -> bool:
+    """An arming refusal that only means the vehicle is still initialising."""
+    if not isinstance(exc, CommandFailedError | CommandTemporarilyRejectedError):
+        return False
+    text = exc.statustext.lower()
+    return isinstance(exc, CommandTemporarilyRejectedError) or any(
+        hint in text for hint in NOT_READY_HINTS
+    )
+
+
+class FlightActions:
+    """Commands for one vehicle, in its own flavour."""
+
+    def __init__(
+        self,
+        link: VehicleLink,
+        command_policy: CommandPolicy | None = None,
+        readiness: ReadinessPolicy | None = None,
+    ) -> None:
+        self.link = link
+        self.commands = command_policy or CommandPolicy()
+        self.readiness = readiness or ReadinessPolicy()
+
+    async def command(self, command: int, *params: float) -> CommandAck:
+        return await send_command(self.link, command, *params, policy=self.commands)
+
+    async def set_mode(self, name: str) -> None:
+        autopilot = self.link.autopilot
+        if autopilot == Autopilot.PX4:
+            main, sub = PX4_MODES[name.upper()]
+            await self.command(Cmd.DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub)
+        else:
+            mode = custom_mode(autopilot, name)
+            await self.command(Cmd.DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode)
+
+    async def arm(self) -> None:
+        await self.command(Cmd.COMPONENT_ARM_DISARM, 1)
+
+    async def disarm(self) -> None:
+        await self.command(Cmd.COMPONENT_ARM_DISARM, 0)
+
+    async def takeoff(self, altitude_m: float) -> None:
+        if self.link.autopilot == Autopilot.PX4:
+            home = self.link.state.home
+            amsl = (home.alt_amsl_m if home else 0.0) + altitude_m
+            await self.command(Cmd.NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, amsl)
+        else:
+            await self.command(Cmd.NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, altitude_m)
+
+    async def arm_and_take_off(self, altitude_m: float) -> None:
+        """GUIDED, arm as soon as the vehicle can, take off; retried while "not ready"."""
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + self.readiness.arm_timeout_s
+        while True:
+            try:
+                await self.set_mode("GUIDED")
+                await self.arm()
+                await self.takeoff(altitude_m)
+                return
+            except (CommandFailedError, CommandTemporarilyRejectedError) as exc:
+                if not is_not_ready(exc) or loop.time() > deadline:
+                    raise
+            await asyncio.sleep(self.readiness.arm_retry_period_s)
+
+    async def wait_altitude(self, altitude_m: float) -> None:
+        """Until the vehicle reports at least `altitude_tolerance` of `altitude_m`."""
+        target = altitude_m * self.readiness.altitude_tolerance
+
+        def high_enough(msg: object) -> bool:
+            return getattr(msg, "relative_alt", 0) / 1000.0 >= target
+
+        position = self.link.state.position
+        if position is not None and position.relative_alt_m >= target:
+            return
+        try:
+            await self.link.wait_for(
+                "GLOBAL_POSITION_INT", high_enough, self.readiness.climb_timeout_s
+            )
+        except WaitTimeoutError:
+            alt = self.link.state.position.relative_alt_m if self.link.state.position else 0.0
+            raise FlightError(
+                f"vehicle {self.link.sysid} did not reach {altitude_m:.1f} m within "
+                f"{self.readiness.climb_timeout_s:.0f} s (at {alt:.1f} m)"
+            ) from None
+
+    async def start_mission(self) -> None:
+        """AUTO, then MISSION_START (needed from the ground, harmless in the air)."""
+        await self.set_mode("AUTO")
+        await self.command(Cmd.MISSION_START, 0, 0)
+
+    async def pause(self) -> None:
+        await self.command(Cmd.DO_PAUSE_CONTINUE, 0)
+
+    async def resume(self) -> None:
+        await self.command(Cmd.DO_PAUSE_CONTINUE, 1)
+
+    async def return_to_launch(self) -> None:
+        await self.set_mode("RTL")
+
+    async def land(self) -> None:
+        await self.set_mode("LAND")

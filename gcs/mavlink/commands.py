@@ -1,0 +1,171 @@
+"""COMMAND_LONG / COMMAND_INT with COMMAND_ACK handling, as the MAVLink command protocol says.
+
+A command is re-sent when its ACK does not come, with `confirmation` counting the
+attempts; IN_PROGRESS extends the wait without re-sending; any other result ends in
+a typed error that carries the STATUSTEXT the vehicle sent with it ("PreArm: ...").
+"""
+
+from __future__ import annotations
+
+import asyncio
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from gcs.mavlink.errors import CommandResult, CommandTimeoutError, WaitTimeoutError, command_error
+
+if TYPE_CHECKING:
+    from gcs.mavlink.link import VehicleLink
+
+STATUSTEXT_GRACE_S = 0.15  # a failure's explanation may trail its ACK
+
+
+class Cmd:
+    """MAV_CMD values the ground station sends."""
+
+    NAV_RETURN_TO_LAUNCH = 20
+    NAV_LAND = 21
+    NAV_TAKEOFF = 22
+    DO_SET_MODE = 176
+    DO_PAUSE_CONTINUE = 193
+    DO_SET_MISSION_CURRENT = 224
+    MISSION_START = 300
+    COMPONENT_ARM_DISARM = 400
+    SET_MESSAGE_INTERVAL = 511
+    REQUEST_MESSAGE = 512
+
+
+@dataclass(frozen=True)
+class CommandPolicy:
+    """How long to wait for an ACK and how often to re-send (failure mode 1: settable)."""
+
+    timeout_s: float = 1.5
+    retries: int = 3
+    in_progress_timeout_s: float = 30.0
+
+
+@dataclass(frozen=True)
+class CommandAck:
+    command: int
+    result: int
+    attempts: int
+    statustext: str = ""
+
+
+Params = tuple[float, float, float, float, float, float, float]
+
+
+def _params(values: tuple[float, ...]) -> Params:
+    padded = tuple(float(v) for v in values) + (0.0,) * (7 - len(values))
+    return padded[:7]  # type: ignore[return-value]
+
+
+async def send_command(
+    link: VehicleLink,
+    command: int,
+    *params: float,
+    policy: CommandPolicy | None = None,
+) -> CommandAck:
+    """Send COMMAND_LONG and return its ACCEPTED ACK, or raise the typed error."""
+    p = _params(params)
+
+    def encode(confirmation: int) -> Any:
+        return link.codec.command_long_encode(link.sysid, link.compid, command, confirmation, *p)
+
+    return await _exchange(link, command, encode, policy or CommandPolicy())
+
+
+async def send_command_int(
+    link: VehicleLink,
+    command: int,
+    *params: float,
+    lat_e7: int = 0,
+    lon_e7: int = 0,
+    alt: float = 0.0,
+    frame: int = 6,
+    policy: CommandPolicy | None = None,
+) -> CommandAck:
+    """COMMAND_INT, for commands with a position (it has no confirmation field)."""
+    p = _params(params)
+
+    def encode(confirmation: int) -> Any:
+        return link.codec.command_int_encode(
+            link.sysid, link.compid, frame, command, 0, 0, *p[:4], lat_e7, lon_e7, alt
+        )
+
+    return await _exchange(link, command, encode, policy or CommandPolicy())
+
+
+async def _exchange(
+    link: VehicleLink, command: int, encode: Any, policy: CommandPolicy
+) -> CommandAck:
+    texts: list[str] = []
+    with link.subscribe(["COMMAND_ACK", "STATUSTEXT"]) as sub:
+        for attempt in range(policy.retries + 1):
+            link.send(encode(attempt))
+            try:
+                ack = await _await_ack(sub, command, policy.timeout_s, texts)
+            except WaitTimeoutError:
+                continue
+            if ack.result == CommandResult.IN_PROGRESS:
+                ack = await _await_final_ack(link, sub, command, policy, texts)
+            if ack.result == CommandResult.ACCEPTED:
+                return CommandAck(command, ack.result, attempt + 1, "; ".join(texts))
+            await _collect_trailing_text(sub, texts)
+            raise command_error(link.sysid, command, ack.result, "; ".join(texts))
+    raise CommandTimeoutError(
+        link.sysid,
+        command,
+        None,
+        "; ".join(texts),
+        detail=f"not acknowledged after {policy.retries + 1} attempts of {policy.timeout_s:.2f} s",
+    )
+
+
+async def _await_ack(sub: Any, command: int, timeout: float, texts: list[str]) -> Any:
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout
+    while True:
+        msg = await sub.get(max(0.0, deadline - loop.time()))
+        if msg.get_type() == "STATUSTEXT":
+            texts.append(_text(msg))
+        elif msg.command == command:
+            return msg
+
+
+async def _await_final_ack(
+    link: VehicleLink, sub: Any, command: int, policy: CommandPolicy, texts: list[str]
+) -> Any:
+    """After IN_PROGRESS: wait (without re-sending) for the ACK that ends the command."""
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + policy.in_progress_timeout_s
+    try:
+        while True:
+            ack = await _await_ack(sub, command, max(0.0, deadline - loop.time()), texts)
+            if ack.result != CommandResult.IN_PROGRESS:
+                return ack
+    except WaitTimeoutError:
+        raise CommandTimeoutError(
+            link.sysid,
+            command,
+            CommandResult.IN_PROGRESS,
+            "; ".join(texts),
+            detail=f"still in progress after {policy.in_progress_timeout_s:.1f} s",
+        ) from None
+
+
+async def _collect_trailing_text(sub: Any, texts: list[str]) -> None:
+    """A refusal's reason, if the vehicle sends it right after the ACK."""
+    if texts:
+        return
+    try:
+        while not texts:
+            msg = await sub.get(STATUSTEXT_GRACE_S)
+            if msg.get_type() == "STATUSTEXT":
+                texts.append(_text(msg))
+    except WaitTimeoutError:
+        pass
+
+
+def _text(msg: Any) -> str:
+    text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode(errors="replace")
+    return text.rstrip("\x00")

@@ -1,0 +1,348 @@
+"""The MAVLink mission protocol, client side: upload, download, clear, set current.
+
+Retries follow the spec and QGroundControl (settable, failure mode 1): MISSION_COUNT
+is re-sent after `step_timeout_s`, at most `retries` times; the openings that change
+nothing when repeated (MISSION_REQUEST_LIST, MISSION_CLEAR_ALL, MISSION_SET_CURRENT)
+are re-sent every `item_timeout_s` within the same overall bound. While items flow the
+exchange is nudged every `item_timeout_s` (upload: the last item again, which also
+recovers a lost final ACK; download: the request again) and fails only when no new
+item has moved for `step_timeout_s * (retries + 1)`, so a noisy link is slow but not
+fatal. Every wait
+is bounded; a definitive refusal is never retried; a link loss or reboot ends the
+exchange at once with its own error.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from gcs.mavlink.errors import (
+    MissionMismatchError,
+    MissionRejectedError,
+    MissionResult,
+    MissionTimeoutError,
+    MissionTransferError,
+    WaitTimeoutError,
+    mission_error,
+)
+from gcs.mavlink.mission_item import Mission, MissionItem
+from gcs.mavlink.subscription import Subscription
+
+if TYPE_CHECKING:
+    from gcs.mavlink.link import VehicleLink
+
+MISSION_TYPE_MISSION = 0
+REQUESTS = ("MISSION_REQUEST", "MISSION_REQUEST_INT")  # real ArduPilot asks with 40
+
+
+@dataclass(frozen=True)
+class TransferPolicy:
+    step_timeout_s: float = 1.5
+    item_timeout_s: float = 0.25
+    retries: int = 5
+    whole_transfer_attempts: int = 2  # for non-definitive refusals (ERROR, CANCELLED)
+
+    @property
+    def stall_limit_s(self) -> float:
+        return self.step_timeout_s * (self.retries + 1)
+
+
+@dataclass(frozen=True)
+class UploadResult:
+    sysid: int
+    items: int
+    seconds: float
+    resends: int
+    verified: bool
+
+
+class _Stall:
+    """Tracks progress of the item phase: nudges allowed until the stall limit."""
+
+    def __init__(self, limit_s: float) -> None:
+        self.limit_s = limit_s
+        self.since = time.monotonic()
+
+    def progressed(self) -> None:
+        self.since = time.monotonic()
+
+    def exceeded(self) -> bool:
+        return time.monotonic() - self.since > self.limit_s
+
+
+class MissionClient:
+    """Mission transfers with one vehicle; one transfer at a time per vehicle."""
+
+    def __init__(self, link: VehicleLink, policy: TransferPolicy | None = None) -> None:
+        self.link = link
+        self.policy = policy or TransferPolicy()
+        self._busy = asyncio.Lock()
+
+    # --- upload ------------------------------------------------------------------------
+
+    async def upload(self, mission: Mission, *, verify: bool = True) -> UploadResult:
+        """Write `mission`, then read it back and compare item by item (failure mode 6)."""
+        self._check_flavour(mission)
+        started = time.perf_counter()
+        async with self._busy:
+            resends = await self._upload_with_retry(mission.items)
+            if verify and mission.items:
+                self._verify(mission, await self._download())
+        seconds = time.perf_counter() - started
+        return UploadResult(self.link.sysid, len(mission), seconds, resends, verify)
+
+    async def _upload_with_retry(self, items: tuple[MissionItem, ...]) -> int:
+        for attempt in range(1, self.policy.whole_transfer_attempts + 1):
+            try:
+                return await self._upload_once(items)
+            except MissionRejectedError as exc:
+                if exc.definitive or attempt == self.policy.whole_transfer_attempts:
+                    raise
+        raise AssertionError("unreachable")
+
+    async def _upload_once(self, items: tuple[MissionItem, ...]) -> int:
+        link, n = self.link, len(items)
+        count = link.codec.mission_count_encode(link.sysid, link.compid, n, MISSION_TYPE_MISSION)
+        with link.subscribe((*REQUESTS, "MISSION_ACK")) as sub:
+            link.ensure_up()
+            first = await self._opening(sub, count, "upload", _opens_upload(n), idempotent=False)
+            return await self._serve_items(sub, items, first)
+
+    async def _serve_items(
+        self, sub: Subscription, items: tuple[MissionItem, ...], msg: Any
+    ) -> int:
+        """Answer requests until the final ACK; returns how many nudges it took."""
+        highest, last_sent, nudges = -1, None, 0
+        stall = _Stall(self.policy.stall_limit_s)
+        while True:
+            if msg is None:
+                if stall.exceeded():
+                    raise self._upload_stalled(highest, len(items))
+                if last_sent is not None:
+                    self._send_item(items, last_sent)
+                    nudges += 1
+            elif msg.get_type() == "MISSION_ACK":
+                if self._upload_finished(msg, items, highest, last_sent):
+                    return nudges
+            elif 0 <= msg.seq < len(items) and _is_mission(msg):
+                self._send_item(items, msg.seq)  # duplicates are answered too
+                last_sent = msg.seq
+                if msg.seq > highest:
+                    highest = msg.seq
+                    stall.progressed()
+            msg = await _next_or_none(sub, self.policy.item_timeout_s)
+
+    def _upload_finished(
+        self, ack: Any, items: tuple[MissionItem, ...], highest: int, last_sent: int | None
+    ) -> bool:
+        if not _is_mission(ack):
+            return False
+        if ack.type == MissionResult.ACCEPTED:
+            # An ACCEPTED before the last item was asked for is a stale one.
+            return len(items) == 0 or highest == len(items) - 1
+        if ack.type == MissionResult.INVALID_SEQUENCE:
+            return False  # failure mode 3: the vehicle re-requests what it wants
+        raise mission_error(self.link.sysid, ack.type, "upload", last_sent)
+
+    def _send_item(self, items: tuple[MissionItem, ...], seq: int) -> None:
+        link, item = self.link, items[seq]
+        link.send(
+            link.codec.mission_item_int_encode(
+                link.sysid,
+                link.compid,
+                seq,
+                int(item.frame),
+                int(item.command),
+                0,
+                int(item.autocontinue),
+                *item.params,
+                item.x,
+                item.y,
+                item.z,
+                MISSION_TYPE_MISSION,
+            )
+        )
+
+    def _upload_stalled(self, highest: int, n: int) -> MissionTimeoutError:
+        sysid, limit = self.link.sysid, self.policy.stall_limit_s
+        if highest == n - 1:
+            return MissionTimeoutError(
+                f"vehicle {sysid}: no final MISSION_ACK after the last item "
+                f"(re-sent for {limit:.1f} s)"
+            )
+        return MissionTimeoutError(
+            f"vehicle {sysid} stopped requesting items after seq {highest} of {n} "
+            f"(nothing for {limit:.1f} s)"
+        )
+
+    def _verify(self, mission: Mission, read_back: tuple[MissionItem, ...]) -> None:
+        seq = mission.first_differing(read_back)
+        if seq is None:
+            return
+        if len(read_back) != len(mission):
+            detail = f"vehicle holds {len(read_back)} items, {len(mission)} were sent"
+        else:
+            detail = f"sent {mission.items[seq]}, vehicle holds {read_back[seq]}"
+        raise MissionMismatchError(self.link.sysid, seq, detail)
+
+    def _check_flavour(self, mission: Mission) -> None:
+        if int(mission.autopilot) != int(self.link.autopilot):
+            raise MissionTransferError(
+                f"vehicle {self.link.sysid} is {self.link.autopilot.name} but the mission was "
+                f"built for {mission.autopilot.name} (seq 0 would be misread)"
+            )
+
+    # --- download ----------------------------------------------------------------------
+
+    async def download(self) -> tuple[MissionItem, ...]:
+        """The mission the vehicle holds (ArduPilot: seq 0 is its current home)."""
+        async with self._busy:
+            return await self._download()
+
+    async def _download(self) -> tuple[MissionItem, ...]:
+        link = self.link
+        request = link.codec.mission_request_list_encode(
+            link.sysid, link.compid, MISSION_TYPE_MISSION
+        )
+        types = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK")
+        with link.subscribe(types) as sub:
+            link.ensure_up()
+            count_msg = await self._opening(sub, request, "download", _is_count)
+            items = [await self._fetch_item(sub, seq) for seq in range(count_msg.count)]
+        link.send(
+            link.codec.mission_ack_encode(
+                link.sysid, link.compid, MissionResult.ACCEPTED, MISSION_TYPE_MISSION
+            )
+        )
+        return tuple(items)
+
+    async def _fetch_item(self, sub: Subscription, seq: int) -> MissionItem:
+        link = self.link
+        request = link.codec.mission_request_int_encode(
+            link.sysid, link.compid, seq, MISSION_TYPE_MISSION
+        )
+        stall = _Stall(self.policy.stall_limit_s)
+        while not stall.exceeded():
+            link.send(request)
+            msg = await _next_or_none(sub, self.policy.item_timeout_s)
+            while msg is not None:
+                if _is_refusal(msg, definitive_only=True):
+                    raise mission_error(link.sysid, msg.type, "download", seq)
+                if msg.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM") and msg.seq == seq:
+                    return _item_from(msg)
+                msg = await _next_or_none(sub, self.policy.item_timeout_s)
+        raise MissionTimeoutError(
+            f"vehicle {link.sysid} did not send item {seq} within {self.policy.stall_limit_s:.1f} s"
+        )
+
+    # --- clear and set current -----------------------------------------------------------
+
+    async def clear(self) -> None:
+        """Remove the vehicle's mission (MISSION_CLEAR_ALL, answered by MISSION_ACK)."""
+        link = self.link
+        msg = link.codec.mission_clear_all_encode(link.sysid, link.compid, MISSION_TYPE_MISSION)
+        async with self._busy:
+            with link.subscribe(["MISSION_ACK"]) as sub:
+                link.ensure_up()
+                ack = await self._opening(sub, msg, "clear", _is_mission)
+        if ack.type != MissionResult.ACCEPTED:
+            raise mission_error(link.sysid, ack.type, "clear")
+
+    async def set_current(self, seq: int) -> None:
+        """Make `seq` the item the vehicle flies next; confirmed by MISSION_CURRENT."""
+        link = self.link
+        msg = link.codec.mission_set_current_encode(link.sysid, link.compid, seq)
+        async with self._busy:
+            with link.subscribe(["MISSION_CURRENT"]) as sub:
+                link.ensure_up()
+                await self._opening(sub, msg, f"set-current to {seq}", lambda m: m.seq == seq)
+
+    # --- shared --------------------------------------------------------------------------
+
+    async def _opening(
+        self,
+        sub: Subscription,
+        msg: Any,
+        operation: str,
+        accept: Any,
+        *,
+        idempotent: bool = True,
+    ) -> Any:
+        """Send `msg` and return the first answer `accept`s, re-sending it while none comes.
+
+        MISSION_COUNT restarts an upload, so it is re-sent only every `step_timeout_s`,
+        at most `retries` times. The other openings (request list, clear, set current)
+        change nothing when repeated: they are re-sent every `item_timeout_s` within the
+        same overall bound, which keeps a lossy link from failing a verification.
+        A refusing MISSION_ACK ends the exchange with its typed error; for an idempotent
+        request a transient one (ERROR, CANCELLED) is taken for the vehicle's answer to a
+        late packet of an earlier exchange and ignored.
+        """
+        policy = self.policy
+        period = policy.item_timeout_s if idempotent else policy.step_timeout_s
+        attempts = round(policy.stall_limit_s / period)
+        loop = asyncio.get_running_loop()
+        for _ in range(attempts):
+            self.link.send(msg)
+            deadline = loop.time() + period
+            while (answer := await _next_or_none(sub, deadline - loop.time())) is not None:
+                if _is_refusal(answer, definitive_only=idempotent):
+                    raise mission_error(self.link.sysid, answer.type, operation)
+                if accept(answer):
+                    return answer
+        raise MissionTimeoutError(
+            f"vehicle {self.link.sysid} did not answer the {operation} within "
+            f"{policy.stall_limit_s:.1f} s ({attempts} tries)"
+        )
+
+
+async def _next_or_none(sub: Subscription, timeout: float) -> Any:
+    try:
+        return await sub.get(max(0.0, timeout))
+    except WaitTimeoutError:
+        return None
+
+
+def _is_mission(msg: Any) -> bool:
+    return getattr(msg, "mission_type", MISSION_TYPE_MISSION) == MISSION_TYPE_MISSION
+
+
+def _opens_upload(n: int) -> Any:
+    """What answers MISSION_COUNT: a request, or for an empty mission the ACK itself."""
+
+    def accept(msg: Any) -> bool:
+        return msg.get_type() in REQUESTS or (n == 0 and msg.get_type() == "MISSION_ACK")
+
+    return accept
+
+
+def _is_refusal(msg: Any, definitive_only: bool = False) -> bool:
+    """A MISSION_ACK that ends the exchange (INVALID_SEQUENCE does not: failure mode 3)."""
+    if msg.get_type() != "MISSION_ACK" or not _is_mission(msg):
+        return False
+    if msg.type in (MissionResult.ACCEPTED, MissionResult.INVALID_SEQUENCE):
+        return False
+    return not definitive_only or mission_error(0, msg.type, "").definitive
+
+
+def _is_count(msg: Any) -> bool:
+    return msg.get_type() == "MISSION_COUNT" and _is_mission(msg)
+
+
+def _item_from(msg: Any) -> MissionItem:
+    if msg.get_type() == "MISSION_ITEM_INT":
+        x, y = msg.x, msg.y
+    else:  # legacy MISSION_ITEM: float degrees
+        x, y = round(msg.x * 1e7), round(msg.y * 1e7)
+    return MissionItem(
+        command=msg.command,
+        frame=msg.frame,
+        params=(msg.param1, msg.param2, msg.param3, msg.param4),
+        x=x,
+        y=y,
+        z=msg.z,
+        autocontinue=bool(msg.autocontinue),
+    )

@@ -1,0 +1,1 @@
+"""The mission domain: plans to MAVLink missions, their files, geodesy and pacing."""

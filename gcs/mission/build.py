@@ -1,0 +1,305 @@
+"""A plan's trajectories as MAVLink missions, and the schedule each mission implies.
+
+The plan (docs/planner.md) gives each UAV `[t, x, y]` points, piecewise linear in grid
+cells and seconds, starting at its start cell at t = 0; two points at one place are a
+hover and legs may differ in speed. A mission reproduces that timing with three things
+every autopilot honours: the ground speed (DO_CHANGE_SPEED, before the first leg and
+again before any leg at another speed), the waypoints (turns, speed changes and hovers
+only: collinear steps at one speed are merged) and each waypoint's hold time.
+
+t = 0 of the plan is the moment the mission leaves NAV_TAKEOFF, every vehicle hovering
+at its altitude over its start cell (the fleet lines them up there). `fly_ideally`
+flies a mission with instant speed changes and exact holds; `mission_schedule` is the
+time it reaches each item, which the fleet compares with the vehicle's progress.
+
+Waits are the waypoint's hold time (NAV_WAYPOINT param1), not NAV_LOITER_TIME: one item
+per turning point, so MISSION_ITEM_REACHED for a waypoint means "arrived here", and
+both autopilots read param1 as seconds to hover (PX4 as a float; ArduCopter stores
+whole seconds, so there a fractional hold is cut short by up to 1 s).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
+from gcs.mission.geodesy import Floats, GridFrame, local_metres, to_e7
+from planner.plan import Plan
+from planner.scenario import Scenario
+from planner.trajectory import Trajectory, merge_collinear
+
+DEFAULT_ALTITUDE_M = 20.0
+"""Flight altitude above home: clear of trees and roofs, low enough for 10 m cells to matter."""
+SPEED_RTOL = 1e-4
+"""Leg speeds closer than this (relative) are one speed: plan times carry 6 decimals."""
+MOVE_EPS_CELLS = 1e-9
+"""Consecutive plan points closer than this are one place (a hover)."""
+
+Finish = Literal["land", "rtl"]
+_NAN = float("nan")
+_STOPS = {Command.NAV_WAYPOINT, Command.NAV_LOITER_TIME, Command.NAV_LAND}
+
+
+@dataclass(frozen=True)
+class Route:
+    """The places a mission visits: start, turns, speed changes, hovers and the end.
+
+    The UAV leaves place k at `arrive[k] + hold[k]` and flies straight to place k + 1
+    at a constant speed, reaching it at `arrive[k + 1]`; the plan's times are kept.
+    """
+
+    xy: Floats  # (k, 2) cells
+    arrive: Floats  # (k,) plan seconds
+    hold: Floats  # (k,) seconds hovering on arrival
+
+    def __len__(self) -> int:
+        return len(self.xy)
+
+    @property
+    def speeds(self) -> Floats:
+        """Cells per second of each leg, shape (k - 1,)."""
+        length = np.hypot(*np.diff(self.xy, axis=0).T)
+        return length / (self.arrive[1:] - self.arrive[:-1] - self.hold[:-1])
+
+    @classmethod
+    def of(cls, trajectory: ArrayLike) -> Route:
+        """The route of a plan trajectory, `[t, x, y]` rows."""
+        stops = cls._stops(np.asarray(trajectory, dtype=float).reshape(-1, 3))
+        if len(stops) == 1:
+            return stops
+        speed = stops.speeds
+        hover_or_new_speed = (stops.hold[1:-1] > 0) | ~np.isclose(
+            speed[:-1], speed[1:], rtol=SPEED_RTOL, atol=0.0
+        )
+        breaks = np.concatenate([[0], np.flatnonzero(hover_or_new_speed) + 1, [len(stops) - 1]])
+        runs = [stops._merged_run(a, b) for a, b in itertools.pairwise(breaks)]
+        return cls(
+            np.concatenate([stops.xy[:1], *(r.xy[1:] for r in runs)]),
+            np.concatenate([stops.arrive[:1], *(r.arrive[1:] for r in runs)]),
+            np.concatenate([stops.hold[:1], *(r.hold[1:] for r in runs)]),
+        )
+
+    @classmethod
+    def _stops(cls, points: Floats) -> Route:
+        """Every place of the trajectory once, repeated points folded into a hold."""
+        if len(points) == 0:
+            raise ValueError("a trajectory needs at least one [t, x, y] point")
+        t, xy = points[:, 0], points[:, 1:]
+        if np.any(np.diff(t) < 0):
+            raise ValueError("trajectory times must not decrease")
+        moved = np.hypot(*np.diff(xy, axis=0).T) > MOVE_EPS_CELLS
+        first = np.flatnonzero(np.concatenate([[True], moved]))
+        last = np.concatenate([first[1:] - 1, [len(points) - 1]])
+        stops = cls(xy[first], t[first], t[last] - t[first])
+        if len(stops) > 1 and np.any(stops.arrive[1:] - stops.arrive[:-1] - stops.hold[:-1] <= 0):
+            raise ValueError("trajectory moves in zero time: no speed can fly it")
+        return stops
+
+    def _merged_run(self, a: int, b: int) -> Route:
+        """Places a..b flown at one speed: collinear places dropped, times by distance."""
+        xy = merge_collinear(self.xy[a : b + 1])
+        along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+        leave = self.arrive[a] + self.hold[a]
+        arrive = leave + (self.arrive[b] - leave) * along / along[-1]
+        arrive[0] = self.arrive[a]
+        hold = np.zeros(len(xy))
+        hold[0], hold[-1] = self.hold[a], self.hold[b]
+        return Route(xy, arrive, hold)
+
+
+def build_missions(
+    plan: Plan,
+    scenario: Scenario,
+    autopilot: Autopilot = Autopilot.ARDUPILOT,
+    *,
+    altitude_m: float | Mapping[str, float] = DEFAULT_ALTITUDE_M,
+    finish: Finish = "land",
+    acceptance_radius_m: float | None = None,
+    allow_infeasible: bool = False,
+) -> dict[str, Mission]:
+    """One mission per UAV of the plan, keyed by UAV id.
+
+    `altitude_m` is metres above home, one for all or one per UAV id. An infeasible plan
+    is refused unless `allow_infeasible` (e.g. to export it for inspection).
+    """
+    if not plan.feasible and not allow_infeasible:
+        raise ValueError(f"plan of {plan.scenario!r} is infeasible: it is not safe to fly")
+    frame = GridFrame.of(scenario)
+    specs = {u.id: u for u in scenario.uavs}
+    unknown = [u.id for u in plan.uavs if u.id not in specs]
+    if unknown:
+        raise ValueError(f"plan UAVs {unknown} are not in scenario {scenario.name!r}")
+    return {
+        u.id: build_mission(
+            u.trajectory,
+            specs[u.id].speed,
+            frame,
+            autopilot,
+            altitude_m=altitude_m if isinstance(altitude_m, int | float) else altitude_m[u.id],
+            finish=finish,
+            acceptance_radius_m=acceptance_radius_m,
+        )
+        for u in plan.uavs
+    }
+
+
+def build_mission(
+    trajectory: ArrayLike,
+    speed: float,
+    frame: GridFrame,
+    autopilot: Autopilot = Autopilot.ARDUPILOT,
+    *,
+    altitude_m: float = DEFAULT_ALTITUDE_M,
+    finish: Finish = "land",
+    acceptance_radius_m: float | None = None,
+) -> Mission:
+    """The mission flying one plan trajectory; `speed` is the UAV's cruise speed in cells/s.
+
+    Items: [home (ArduPilot only)], NAV_TAKEOFF, DO_CHANGE_SPEED, then a NAV_WAYPOINT per
+    route place (a DO_CHANGE_SPEED before any leg at another speed), then NAV_LAND at the
+    last place or, with `finish="rtl"`, NAV_RETURN_TO_LAUNCH after it.
+    """
+    if altitude_m <= 0:
+        raise ValueError(f"altitude_m must be positive, got {altitude_m}")
+    if acceptance_radius_m is not None and acceptance_radius_m < 0:
+        raise ValueError(f"acceptance_radius_m must not be negative, got {acceptance_radius_m}")
+    route = Route.of(trajectory)
+    lat, lon = frame.to_geodetic(route.xy[:, 0], route.xy[:, 1])
+    x, y = to_e7(lat), to_e7(lon)
+    radius = acceptance_radius_m or 0.0  # 0: the autopilot's default radius
+    cruise = speed * frame.cell_size_m
+    items = [_takeoff(x[0], y[0], altitude_m), _change_speed(cruise)]
+    if route.hold[0] > 0:
+        items.append(_waypoint(x[0], y[0], altitude_m, route.hold[0], radius))
+    for k, leg_speed in enumerate(route.speeds * frame.cell_size_m, start=1):
+        if not math.isclose(leg_speed, cruise, rel_tol=SPEED_RTOL):
+            items.append(_change_speed(leg_speed))
+            cruise = leg_speed
+        items.append(_waypoint(x[k], y[k], altitude_m, route.hold[k], radius))
+    items = _finished(items, x[-1], y[-1], finish)
+    home = (float(lat[0]), float(lon[0]), frame.alt0)
+    if autopilot == Autopilot.ARDUPILOT:
+        items.insert(0, _home(x[0], y[0], frame.alt0))
+    return Mission(tuple(items), autopilot, home)
+
+
+def _finished(items: list[MissionItem], x: int, y: int, finish: Finish) -> list[MissionItem]:
+    """End with a landing at the last place (instead of its waypoint when there is no hold)."""
+    if finish == "rtl":
+        return [*items, MissionItem(Command.NAV_RETURN_TO_LAUNCH, Frame.MISSION)]
+    if finish != "land":
+        raise ValueError(f"finish must be 'land' or 'rtl', got {finish!r}")
+    last = items[-1]
+    if last.command == Command.NAV_WAYPOINT and last.params[0] == 0 and (last.x, last.y) == (x, y):
+        items = items[:-1]
+    return [*items, MissionItem(Command.NAV_LAND, params=(0.0, 0.0, 0.0, _NAN), x=x, y=y)]
+
+
+def _home(x: int, y: int, amsl: float) -> MissionItem:
+    """ArduPilot's item 0, as QGC writes it: frame GLOBAL, altitude AMSL."""
+    return MissionItem(Command.NAV_WAYPOINT, Frame.GLOBAL, x=int(x), y=int(y), z=float(amsl))
+
+
+def _takeoff(x: int, y: int, altitude_m: float) -> MissionItem:
+    return MissionItem(
+        Command.NAV_TAKEOFF, params=(0.0, 0.0, 0.0, _NAN), x=int(x), y=int(y), z=altitude_m
+    )
+
+
+def _change_speed(metres_per_second: float) -> MissionItem:
+    """Ground speed (param1 = 1); throttle -1 = unchanged."""
+    return MissionItem(
+        Command.DO_CHANGE_SPEED, Frame.MISSION, params=(1.0, float(metres_per_second), -1.0, 0.0)
+    )
+
+
+def _waypoint(x: int, y: int, altitude_m: float, hold_s: float, radius_m: float) -> MissionItem:
+    """Yaw NaN: keep the autopilot's yaw behaviour (0 would point PX4 north)."""
+    return MissionItem(
+        Command.NAV_WAYPOINT,
+        params=(float(hold_s), radius_m, 0.0, _NAN),
+        x=int(x),
+        y=int(y),
+        z=altitude_m,
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class Visit:
+    """One NAV item reached on an ideal flight; times in plan seconds."""
+
+    seq: int  # the item's index in the mission, as MISSION_ITEM_REACHED reports it
+    arrive: float
+    leave: float  # arrive + hold
+    lat: float
+    lon: float
+
+
+def fly_ideally(mission: Mission) -> list[Visit]:
+    """The NAV items after take-off as a vehicle with instant speed changes would reach them.
+
+    t = 0 when it leaves NAV_TAKEOFF over the take-off point. Legs are straight lines in
+    the east-north plane at home's altitude, flown at the last DO_CHANGE_SPEED's param2;
+    a waypoint or NAV_LOITER_TIME holds param1 seconds. The flight ends at NAV_LAND
+    (reached when over its position, before descending) or before NAV_RETURN_TO_LAUNCH,
+    whose timing is the autopilot's, not the plan's.
+    """
+    items = mission.items
+    start = _takeoff_index(items)
+    lat = np.array([item.lat for item in items])
+    lon = np.array([item.lon for item in items])
+    ground = mission.home[2] if mission.home else 0.0
+    metres = local_metres(lat, lon, lat[start], lon[start], ground)
+    here, t, speed = metres[start], 0.0, None
+    visits: list[Visit] = []
+    for seq in range(start + 1, len(items)):
+        item = items[seq]
+        if item.command == Command.DO_CHANGE_SPEED and item.params[1] > 0:
+            speed = item.params[1]
+        if item.command == Command.NAV_RETURN_TO_LAUNCH:
+            break
+        if item.command not in _STOPS:
+            continue
+        distance = float(np.hypot(*(metres[seq] - here)))
+        if distance > 0 and speed is None:
+            raise ValueError(f"item {seq} moves before any DO_CHANGE_SPEED sets a speed")
+        t += distance / speed if distance > 0 else 0.0
+        hold = item.params[0] if item.command != Command.NAV_LAND else 0.0
+        visits.append(Visit(seq, t, t + hold, item.lat, item.lon))
+        here, t = metres[seq], t + hold
+        if item.command == Command.NAV_LAND:
+            break
+    return visits
+
+
+def mission_schedule(mission: Mission) -> dict[int, float]:
+    """Item seq → plan time at which the vehicle should reach it (NAV items after take-off)."""
+    return {visit.seq: visit.arrive for visit in fly_ideally(mission)}
+
+
+def flown_trajectory(mission: Mission, frame: GridFrame) -> Trajectory:
+    """The ideal flight back in the plan's terms: `[t, x, y]` in cells from t = 0."""
+    takeoff = mission.items[_takeoff_index(mission.items)]
+    visits = fly_ideally(mission)
+    rows = [(0.0, takeoff.lat, takeoff.lon)]
+    for v in visits:
+        rows.append((v.arrive, v.lat, v.lon))
+        if v.leave > v.arrive:
+            rows.append((v.leave, v.lat, v.lon))
+    t, lat, lon = np.array(rows).T
+    x, y = frame.to_cells(lat, lon)
+    return Trajectory(np.column_stack([t, x, y]))
+
+
+def _takeoff_index(items: tuple[MissionItem, ...]) -> int:
+    for seq, item in enumerate(items):
+        if item.command == Command.NAV_TAKEOFF:
+            return seq
+    raise ValueError("the mission has no NAV_TAKEOFF: plan time 0 is undefined")

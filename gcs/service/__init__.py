@@ -1,0 +1,1 @@
+"""The planning and flight service: REST + WebSocket API, storage, console."""

@@ -1,0 +1,119 @@
+"""The FastAPI application: its parts are built in the lifespan, routers hold the endpoints."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator, Awaitable, Callable
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI, Request
+from fastapi.exception_handlers import http_exception_handler
+from fastapi.responses import JSONResponse, Response
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Route
+
+from gcs.mavlink.errors import GcsError
+from gcs.service.api.auth import ensure_token
+from gcs.service.api.body_limit import BodySizeLimit
+from gcs.service.api.deps import Services
+from gcs.service.api.routers import flights, health, missions, plans, scenarios, vehicles
+from gcs.service.flight_service import BadBindings, BadObject, FlightConflict
+from gcs.service.planning import JobNotCancellable
+from gcs.service.planning_pool import PlanningPool
+from gcs.service.settings import Settings
+from gcs.service.storage import Database, NotFound
+from gcs.service.vehicle_registry import VehicleOffline
+
+log = logging.getLogger("mvo_gcs")
+
+DESCRIPTION = """Plans collision-free paths for several UAVs with the multi-verse optimizer
+(MVO) or one of five other metaheuristics, turns them into MAVLink missions, uploads them
+to the vehicles, flies the fleet together and streams its telemetry.
+
+Reading is open; every request that changes state needs `Authorization: Bearer <token>`.
+"""
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        db = Database(settings.resolved_database_url)
+        recovered = db.recover()
+        if any(recovered.values()):
+            log.warning("marked unfinished work from the last run as interrupted: %s", recovered)
+        token, token_file = ensure_token(settings)
+        services = Services.build(settings, db)
+        pool = PlanningPool(settings.plan_workers, services.planning.on_progress)
+        pool.start()
+        services.planning.pool = pool
+        for vehicle in services.vehicles.list(limit=10_000):
+            services.registry.add(vehicle.id, vehicle.connection, vehicle.sysid)
+        app.state.token, app.state.token_file, app.state.services = token, token_file, services
+        _announce(settings, token, token_file)
+        try:
+            yield
+        finally:
+            await services.flight_service.close()
+            await services.registry.close()
+            await services.planning.shutdown()
+            pool.shutdown()
+            db.close()
+
+    app = FastAPI(
+        title="mvo-gcs",
+        version="0.1.0",
+        description=DESCRIPTION,
+        lifespan=lifespan,
+    )
+    app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    routers = (scenarios, plans, missions, vehicles, flights, health)
+    for module in routers:
+        app.include_router(module.router)
+        _add_error_handlers(app)
+    return app
+
+
+def _methods_at(request: Request) -> list[str]:
+    methods: set[str] = set()
+    for route in request.app.routes:
+        if isinstance(route, Route) and route.path_regex.match(request.url.path):
+            methods |= route.methods or set()
+    return sorted(methods)
+
+
+def _announce(settings: Settings, token: str, token_file: Path | None) -> None:
+    """Where the docs are and where the token is, on the terminal that started us."""
+    print(f"mvo-gcs: API docs at http://{settings.host}:{settings.port}/docs", flush=True)
+    where = f"in {token_file}" if token_file else "from the MVO_GCS_TOKEN setting"
+    print(f"mvo-gcs: bearer token {where}", flush=True)
+    if settings.show_token:
+        print(f"mvo-gcs: token {token}", flush=True)
+
+
+def _add_error_handlers(app: FastAPI) -> None:
+    def problem(status: int) -> Callable[[Request, Exception], Awaitable[JSONResponse]]:
+        async def handler(_: Request, exc: Exception) -> JSONResponse:
+            return JSONResponse({"detail": str(exc)}, status_code=status)
+
+        return handler
+
+    async def http_error(request: Request, exc: Exception) -> Response:
+        response = await http_exception_handler(request, exc)  # type: ignore[arg-type]
+        if response.status_code == 405:  # one path, several routes: name all their methods
+            response.headers["Allow"] = ", ".join(_methods_at(request))
+        return response
+
+    app.add_exception_handler(StarletteHTTPException, http_error)
+    app.add_exception_handler(NotFound, problem(404))
+    app.add_exception_handler(JobNotCancellable, problem(409))
+    app.add_exception_handler(missions.UnflyablePlan, problem(409))
+    app.add_exception_handler(vehicles.AlreadyRegistered, problem(409))
+    app.add_exception_handler(VehicleOffline, problem(409))
+    app.add_exception_handler(FlightConflict, problem(409))
+    app.add_exception_handler(BadBindings, problem(422))
+    app.add_exception_handler(BadObject, problem(422))
+    app.add_exception_handler(GcsError, problem(502))  # the vehicle, not the request

@@ -1,0 +1,86 @@
+"""A non-UAV object reported during a flight: replan only the UAVs it touches.
+
+The planner decides who changes and how (`planner.live_replan`, the wormhole step done
+live); this module gives it the fleet's clock and positions, turns the new trajectories
+into missions, re-uploads only those, and splices them into the flight's current plan
+so that the next report starts from what the vehicles are really flying.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from dataclasses import dataclass
+
+import numpy as np
+
+from gcs.fleet.fleet import Fleet, VehicleOutcome
+from gcs.mavlink.mission_item import Mission
+from gcs.mission.build import Finish, build_mission
+from gcs.mission.geodesy import GridFrame
+from planner.live_replan import LiveReplan, NewObject, replan_live
+from planner.plan import Plan, PlannedUAV
+from planner.scenario import Scenario
+
+
+@dataclass(frozen=True)
+class ReplanOutcome:
+    result: LiveReplan
+    uploads: dict[str, VehicleOutcome[None]]
+    plan: Plan  # the flight's plan with the new trajectories spliced in
+
+
+async def replan_flight(
+    fleet: Fleet,
+    scenario: Scenario,
+    plan: Plan,
+    new_object: NewObject,
+    known: list[NewObject],
+    *,
+    altitude_m: float,
+    finish: Finish,
+    turn_radius_m: float,
+) -> ReplanOutcome:
+    """`scenario` and `plan` are as flown (paced): the fleet's clock is the plan's."""
+    frame = GridFrame.of(scenario)
+    now = fleet.plan_time()
+    positions = _positions(fleet, frame)
+    result = await asyncio.to_thread(
+        replan_live, scenario, plan, new_object, now=now, positions=positions,
+        known_objects=known,
+    )
+    speeds = {u.id: u.speed for u in scenario.uavs}
+    missions: dict[str, Mission] = {}
+    for uav, trajectory in result.changed.items():
+        relative = np.asarray(trajectory, dtype=float)
+        relative[:, 0] -= relative[0, 0]  # the new mission's t = 0 is `now`
+        missions[uav] = build_mission(
+            relative, speeds[uav], frame, fleet.autopilot(uav),
+            altitude_m=altitude_m, finish=finish, acceptance_radius_m=turn_radius_m,
+        )
+    uploads = await fleet.replace_missions(missions, starts_at=result.now) if missions else {}
+    return ReplanOutcome(result, uploads, _spliced(plan, result, uploads))
+
+
+def _positions(fleet: Fleet, frame: GridFrame) -> dict[str, tuple[float, float]]:
+    where = {}
+    for progress in fleet.progress():
+        if progress.lat is not None and progress.lon is not None and not progress.finished:
+            x, y = frame.to_cells(progress.lat, progress.lon)
+            where[progress.uav_id] = (float(x), float(y))
+    return where
+
+
+def _spliced(plan: Plan, result: LiveReplan, uploads: dict[str, VehicleOutcome[None]]) -> Plan:
+    """The plan as flown from now on: old trajectories up to `now`, then the new ones
+    (only for the vehicles that took their new mission)."""
+    uavs: list[PlannedUAV] = []
+    for u in plan.uavs:
+        outcome = uploads.get(u.id)
+        if outcome is None or not outcome.ok:
+            uavs.append(u)
+            continue
+        new = result.changed[u.id]
+        before = [p for p in u.trajectory if p[0] < new[0][0]]
+        uavs.append(u.model_copy(update={"trajectory": before + new, "replanned": [
+            *u.replanned, "non-UAV object reported in flight"]}))
+    return plan.model_copy(update={"uavs": uavs})
