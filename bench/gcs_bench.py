@@ -18,7 +18,8 @@ import sys
 import time
 from pathlib import Path
 
-from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink import client
+from gcs.mavlink.link import LinkSettings
 from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
 from gcs.mavlink.mission_protocol import MissionClient
 from planner.experiments.machine import describe_machine
@@ -45,20 +46,20 @@ def configs(n: int) -> list[VehicleConfig]:
 
 
 async def single_uploads(url: str) -> tuple[float, float]:
-    link = await VehicleLink.connect(url)
-    client, payload = MissionClient(link), mission(100)
+    link = await client.connect(url)
+    missions, payload = MissionClient(link), mission(100)
     try:
         bare, verified = [], []
         for _ in range(UPLOAD_RUNS):
-            bare.append((await client.upload(payload, verify=False)).seconds)
-            verified.append((await client.upload(payload)).seconds)
+            bare.append((await missions.upload(payload, verify=False)).seconds)
+            verified.append((await missions.upload(payload)).seconds)
     finally:
         await link.close()
     return statistics.median(bare) * 1000, statistics.median(verified) * 1000
 
 
 async def fleet_upload(urls: list[str]) -> float:
-    links = await asyncio.gather(*(VehicleLink.connect(url) for url in urls))
+    links = await asyncio.gather(*(client.connect(url) for url in urls))
     try:
         payload = mission(100)
         started = time.perf_counter()
@@ -71,7 +72,7 @@ async def fleet_upload(urls: list[str]) -> float:
 
 async def follow(urls: list[str], seconds: float) -> tuple[float, int]:
     settings = LinkSettings(connect_timeout_s=10.0)
-    links = await asyncio.gather(*(VehicleLink.connect(url, settings=settings) for url in urls))
+    links = await asyncio.gather(*(client.connect(url, settings=settings) for url in urls))
     received = 0
 
     def count(msg: object) -> None:

@@ -35,10 +35,14 @@ mavlink = mavutil.mavlink
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results" / "sitl.md"
 STREAMS = [
-    mavlink.MAVLINK_MSG_ID_SYS_STATUS, mavlink.MAVLINK_MSG_ID_GPS_RAW_INT,
-    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, mavlink.MAVLINK_MSG_ID_ATTITUDE,
-    mavlink.MAVLINK_MSG_ID_VFR_HUD, mavlink.MAVLINK_MSG_ID_HOME_POSITION,
-    mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, mavlink.MAVLINK_MSG_ID_MISSION_CURRENT,
+    mavlink.MAVLINK_MSG_ID_SYS_STATUS,
+    mavlink.MAVLINK_MSG_ID_GPS_RAW_INT,
+    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+    mavlink.MAVLINK_MSG_ID_ATTITUDE,
+    mavlink.MAVLINK_MSG_ID_VFR_HUD,
+    mavlink.MAVLINK_MSG_ID_HOME_POSITION,
+    mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+    mavlink.MAVLINK_MSG_ID_MISSION_CURRENT,
 ]
 EXPECTED_HZ = 1 + 1 + 1 + 5 + 10 + 4 + 0.5 + 1 + 1
 """Per vehicle, simulated seconds: heartbeat plus the default rates in sitl_mock.telemetry."""
@@ -46,8 +50,19 @@ CLK_TCK = os.sysconf("SC_CLK_TCK")
 
 
 def start_simulator(vehicles: int, speedup: float, pin: bool) -> tuple[subprocess.Popen, list]:
-    command = [sys.executable, "-m", "sitl_mock", "--vehicles", str(vehicles), "--base-port",
-               "0", "--speedup", str(speedup), "--estimate-delay", "0"]
+    command = [
+        sys.executable,
+        "-m",
+        "sitl_mock",
+        "--vehicles",
+        str(vehicles),
+        "--base-port",
+        "0",
+        "--speedup",
+        str(speedup),
+        "--estimate-delay",
+        "0",
+    ]
     if pin and shutil.which("taskset"):
         command = ["taskset", "-c", "0", *command]
     proc = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, text=True)
@@ -75,9 +90,22 @@ def telemetry_bench(vehicles: int, speedup: float, seconds: float, pin: bool) ->
             for sysid, port in enumerate(ports, start=1):
                 packets = [mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3)]
                 if request_streams:  # interval 0 = the message's default rate
-                    packets += [mavlink.MAVLink_command_long_message(
-                        sysid, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, msg_id, 0, 0, 0, 0,
-                        0, 0) for msg_id in STREAMS]
+                    packets += [
+                        mavlink.MAVLink_command_long_message(
+                            sysid,
+                            1,
+                            mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                            0,
+                            msg_id,
+                            0,
+                            0,
+                            0,
+                            0,
+                            0,
+                            0,
+                        )
+                        for msg_id in STREAMS
+                    ]
                 for packet in packets:
                     sock.sendto(packet.pack(mav), ("127.0.0.1", port))
 
@@ -142,20 +170,27 @@ def upload_bench(uploads: int, items: int, pin: bool) -> list[float]:
 def _upload(link, count: int) -> int:
     link.mav.mission_count_send(1, 1, count, 0)
     while True:
-        msg = link.recv_match(type=["MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"],
-                              blocking=True, timeout=5)
+        msg = link.recv_match(
+            type=["MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"], blocking=True, timeout=5
+        )
         if msg is None:
             return -1
         if msg.get_type() == "MISSION_ACK":
             return msg.type
-        link.mav.mission_item_int_send(1, 1, msg.seq, 6, 16, 0, 1, 0, 0, 0, 0,
-                                       473977000 + msg.seq * 100, 85456000, 20.0, 0)
+        link.mav.mission_item_int_send(
+            1, 1, msg.seq, 6, 16, 0, 1, 0, 0, 0, 0, 473977000 + msg.seq * 100, 85456000, 20.0, 0
+        )
 
 
 def machine() -> list[str]:
-    cpu = next((line.split(":", 1)[1].strip() for line in
-                Path("/proc/cpuinfo").read_text().splitlines() if line.startswith("model name")),
-               platform.processor())
+    cpu = next(
+        (
+            line.split(":", 1)[1].strip()
+            for line in Path("/proc/cpuinfo").read_text().splitlines()
+            if line.startswith("model name")
+        ),
+        platform.processor(),
+    )
     load = os.getloadavg()
     return [
         f"- platform: {platform.platform()}",
@@ -166,56 +201,59 @@ def machine() -> list[str]:
     ]
 
 
-def report(args: argparse.Namespace, telemetry: dict, uploads: list[float],
-           machine_lines: list[str]) -> str:
+def report(
+    args: argparse.Namespace, telemetry: dict, uploads: list[float], machine_lines: list[str]
+) -> str:
     median = statistics.median(uploads)
     cpu_ok = telemetry["cpu_fraction"] < 1.0
     rate_share = telemetry["messages_per_s"] / telemetry["expected_per_s"]
-    return "\n".join([
-        "# sitl_mock benchmark",
-        "",
-        f"{args.vehicles} simulated vehicles in one process at {args.speedup:g}x speed-up, "
-        "every stream requested at its default rate with SET_MESSAGE_INTERVAL(id, 0), for "
-        f"{telemetry['wall_s']:.0f} s of wall time; a listening client on loopback UDP counts "
-        "what arrives. Then a 100-item mission upload from pymavlink (answering each "
-        f"MISSION_REQUEST with MISSION_ITEM_INT), {len(uploads)} times, against one vehicle.",
-        "",
-        "## Machine",
-        "",
-        *machine_lines,
-        f"- simulator pinned to core 0: {'yes' if args.pin and shutil.which('taskset') else 'no'}",
-        "",
-        "## Command",
-        "",
-        "```",
-        f"python bench/sitl_bench.py --vehicles {args.vehicles} --speedup {args.speedup:g} "
-        f"--seconds {args.seconds:g} --uploads {args.uploads}",
-        "```",
-        "",
-        "## Results",
-        "",
-        "| measure | value | target | verdict |",
-        "|---|---:|---:|---|",
-        f"| simulator CPU (fraction of one core) | {telemetry['cpu_fraction']:.2f} | < 1.0 | "
-        f"{'met' if cpu_ok else 'missed'} |",
-        f"| telemetry received (messages/s) | {telemetry['messages_per_s']:.0f} | "
-        f"{telemetry['expected_per_s']:.0f} configured | {rate_share:.1%} of configured |",
-        f"| 100-item upload, median ms | {median:.1f} | ≤ 100 | "
-        f"{'met' if median <= 100 else 'missed'} |",
-        f"| 100-item upload, min / max ms | {min(uploads):.1f} / {max(uploads):.1f} | | |",
-        "",
-        "Telemetry rates run on simulated time, so at 10x each vehicle sends ten times its "
-        f"per-second rates ({EXPECTED_HZ:g} messages per simulated second: heartbeat 1 Hz, "
-        "SYS_STATUS 1, GPS_RAW_INT 1, GLOBAL_POSITION_INT 5, ATTITUDE 10, VFR_HUD 4, "
-        "HOME_POSITION 0.5, EXTENDED_SYS_STATE 1, MISSION_CURRENT 1).",
-        "",
-        "The vehicles stand disarmed on the ground during the telemetry run: telemetry, not "
-        "flight, dominates the cost (the fleet's physics is one numpy step for all vehicles).",
-        "",
-        "The machine has two cores shared with other work running at the same time; numbers "
-        "taken under load (see the load average above) can be pessimistic.",
-        "",
-    ])
+    return "\n".join(
+        [
+            "# sitl_mock benchmark",
+            "",
+            f"{args.vehicles} simulated vehicles in one process at {args.speedup:g}x speed-up, "
+            "every stream requested at its default rate with SET_MESSAGE_INTERVAL(id, 0), for "
+            f"{telemetry['wall_s']:.0f} s of wall time; a listening client on loopback UDP counts "
+            "what arrives. Then a 100-item mission upload from pymavlink (answering each "
+            f"MISSION_REQUEST with MISSION_ITEM_INT), {len(uploads)} times, against one vehicle.",
+            "",
+            "## Machine",
+            "",
+            *machine_lines,
+            f"- simulator pinned to core 0: {'yes' if args.pin and shutil.which('taskset') else 'no'}",
+            "",
+            "## Command",
+            "",
+            "```",
+            f"python bench/sitl_bench.py --vehicles {args.vehicles} --speedup {args.speedup:g} "
+            f"--seconds {args.seconds:g} --uploads {args.uploads}",
+            "```",
+            "",
+            "## Results",
+            "",
+            "| measure | value | target | verdict |",
+            "|---|---:|---:|---|",
+            f"| simulator CPU (fraction of one core) | {telemetry['cpu_fraction']:.2f} | < 1.0 | "
+            f"{'met' if cpu_ok else 'missed'} |",
+            f"| telemetry received (messages/s) | {telemetry['messages_per_s']:.0f} | "
+            f"{telemetry['expected_per_s']:.0f} configured | {rate_share:.1%} of configured |",
+            f"| 100-item upload, median ms | {median:.1f} | ≤ 100 | "
+            f"{'met' if median <= 100 else 'missed'} |",
+            f"| 100-item upload, min / max ms | {min(uploads):.1f} / {max(uploads):.1f} | | |",
+            "",
+            "Telemetry rates run on simulated time, so at 10x each vehicle sends ten times its "
+            f"per-second rates ({EXPECTED_HZ:g} messages per simulated second: heartbeat 1 Hz, "
+            "SYS_STATUS 1, GPS_RAW_INT 1, GLOBAL_POSITION_INT 5, ATTITUDE 10, VFR_HUD 4, "
+            "HOME_POSITION 0.5, EXTENDED_SYS_STATE 1, MISSION_CURRENT 1).",
+            "",
+            "The vehicles stand disarmed on the ground during the telemetry run: telemetry, not "
+            "flight, dominates the cost (the fleet's physics is one numpy step for all vehicles).",
+            "",
+            "The machine has two cores shared with other work running at the same time; numbers "
+            "taken under load (see the load average above) can be pessimistic.",
+            "",
+        ]
+    )
 
 
 def main() -> int:

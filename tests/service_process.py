@@ -36,8 +36,18 @@ class ServiceProcess:
 
     def start(self, timeout: float = 30.0) -> None:
         self.data_dir.mkdir(parents=True, exist_ok=True)
-        command = [sys.executable, "-m", "gcs.cli.main", "serve", "--port", str(self.port),
-                   "--data-dir", str(self.data_dir), "--workers", str(self.workers)]
+        command = [
+            sys.executable,
+            "-m",
+            "gcs.cli.main",
+            "serve",
+            "--port",
+            str(self.port),
+            "--data-dir",
+            str(self.data_dir),
+            "--workers",
+            str(self.workers),
+        ]
         with self.log.open("a") as log:
             self.process = subprocess.Popen(
                 command, env=self.env, stdout=log, stderr=subprocess.STDOUT, text=True

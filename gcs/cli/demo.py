@@ -38,9 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     settings = settings_from(args).model_copy(update={"show_token": True})
-    scenario = (
-        load_scenario(args.scenario.read_text()) if args.scenario else load_case("case-6")
-    )
+    scenario = load_scenario(args.scenario.read_text()) if args.scenario else load_case("case-6")
     simulator = vehicles_at_starts(scenario, args.speedup, args.base_port)
     with simulator.running():
         for line in register(settings, simulator):

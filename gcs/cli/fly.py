@@ -21,6 +21,7 @@ from gcs.cli.planning_options import (
 )
 from gcs.cli.progress_display import ProgressDisplay
 from gcs.fleet.fleet import Fallback, Fleet, FleetSettings, FlightReport
+from gcs.mavlink import client
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Mission
@@ -111,7 +112,7 @@ async def _connect(scenario: Scenario, urls: list[str], timeout: float) -> dict[
     from gcs.mavlink.link import LinkSettings
 
     settings = LinkSettings(connect_timeout_s=timeout)
-    tasks = [VehicleLink.connect(url, settings=settings) for url in urls]
+    tasks = [client.connect(url, settings=settings) for url in urls]
     results = await asyncio.gather(*tasks, return_exceptions=True)
     links, problems = {}, []
     for uav, url, result in zip(scenario.uavs, urls, results, strict=True):

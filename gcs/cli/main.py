@@ -7,6 +7,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from gcs.cli.planning_options import (
     ScenarioFileError,
@@ -16,11 +17,30 @@ from gcs.cli.planning_options import (
     read_scenario,
 )
 from planner.cases import CASES, PAPER_POPULATIONS
-from planner.experiments.library_comparison import BenchDependencyError
 from planner.optimizers import ALGORITHMS, ObjectiveError, OptimizerInputError
 
-USER_ERRORS = (OptimizerInputError, ObjectiveError, BenchDependencyError, ScenarioFileError)
+EXPERIMENTS_HINT = (
+    "pip install 'mvo-gcs[experiments]' (from a checkout: pip install -e '.[experiments]')"
+)
+
+
+class MissingDependency(Exception):
+    """A command needs an optional dependency that is not installed."""
+
+
+USER_ERRORS = (OptimizerInputError, ObjectiveError, ScenarioFileError, MissingDependency)
 """Errors a user can cause: reported in one line, exit code 2, no traceback."""
+
+
+def _experiments(module: str) -> Any:
+    """A module of `planner.experiments`, whose plotting and cluster libraries are the
+    optional 'experiments' extra (the service and the planner do not need them)."""
+    try:
+        return importlib.import_module(f"planner.experiments.{module}")
+    except ModuleNotFoundError as exc:
+        if exc.name and exc.name.split(".")[0] in ("matplotlib", "tqdm", "dask", "distributed"):
+            raise MissingDependency(f"this command needs {exc.name}: {EXPERIMENTS_HINT}") from exc
+        raise
 
 
 def _add_executor_options(parser: argparse.ArgumentParser) -> None:
@@ -39,9 +59,8 @@ def _add_executor_options(parser: argparse.ArgumentParser) -> None:
 
 
 def _reproduce_benchmarks(args: argparse.Namespace) -> int:
-    from planner.experiments.benchmark_study import StudyConfig, run_study
-
-    config = StudyConfig(
+    study = _experiments("benchmark_study")
+    config = study.StudyConfig(
         seeds=args.seeds,
         figure_seeds=min(args.seeds, 10),
         iterations=args.iterations,
@@ -49,15 +68,14 @@ def _reproduce_benchmarks(args: argparse.Namespace) -> int:
         quick=args.quick,
         algorithms=tuple(args.algorithms),
     )
-    report = run_study(config, args.out, workers=args.workers, scheduler=args.scheduler)
+    report = study.run_study(config, args.out, workers=args.workers, scheduler=args.scheduler)
     print(f"wrote {report}")
     return 0
 
 
 def _reproduce_cases(args: argparse.Namespace) -> int:
-    from planner.experiments.case_study import CaseStudyConfig, run_case_study
-
-    config = CaseStudyConfig(
+    study = _experiments("case_study")
+    config = study.CaseStudyConfig(
         seeds=args.seeds,
         iterations=args.iterations,
         populations=tuple(dict.fromkeys(args.populations)),
@@ -65,22 +83,24 @@ def _reproduce_cases(args: argparse.Namespace) -> int:
         objective=args.objective,
         cases=tuple(dict.fromkeys(args.cases)),
     )
-    report = run_case_study(config, args.out, workers=args.workers, scheduler=args.scheduler)
+    report = study.run_case_study(config, args.out, workers=args.workers, scheduler=args.scheduler)
     print(f"wrote {report}")
     return 0
 
 
 def _bench_optimizers(args: argparse.Namespace) -> int:
-    from planner.experiments.library_comparison import ComparisonConfig, run_comparison
-
-    config = ComparisonConfig(
+    comparison = _experiments("library_comparison")
+    config = comparison.ComparisonConfig(
         seeds=args.seeds,
         iterations=args.iterations,
         population=args.population,
         dim=args.dim,
         algorithms=tuple(args.algorithms),
     )
-    out = run_comparison(config, args.out)
+    try:
+        out = comparison.run_comparison(config, args.out)
+    except comparison.BenchDependencyError as exc:
+        raise MissingDependency(str(exc)) from exc
     print(f"wrote {out}")
     return 0
 
@@ -108,9 +128,8 @@ def _plan(args: argparse.Namespace) -> int:
 
 
 def _bench_planner(args: argparse.Namespace) -> int:
-    from planner.experiments.planner_bench import PlannerBenchConfig, run_planner_bench
-
-    config = PlannerBenchConfig(
+    bench = _experiments("planner_bench")
+    config = bench.PlannerBenchConfig(
         scenarios=args.scenarios,
         first_seed=args.first_seed,
         algorithm=args.algorithm,
@@ -118,11 +137,13 @@ def _bench_planner(args: argparse.Namespace) -> int:
         iterations=args.iterations,
         workers=args.workers,
     )
-    print(f"wrote {run_planner_bench(config, args.out)}")
+    print(f"wrote {bench.run_planner_bench(config, args.out)}")
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The whole command line; of the commands whose options live in their own module,
+    only `command`'s module is imported (so `--help` and `plan` load no server)."""
     parser = argparse.ArgumentParser(
         prog="mvo-gcs", description="MVO multi-UAV path planning and ground station"
     )
@@ -218,7 +239,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="processes for the generated scenarios (timed sections always run alone)",
     )
     paths.set_defaults(handler=_bench_planner)
-    _add_module_commands(commands)
+    _add_module_commands(commands, command)
     return parser
 
 
@@ -232,16 +253,18 @@ MODULE_COMMANDS = {
 and `run(args) -> int`."""
 
 
-def _add_module_commands(commands: argparse._SubParsersAction) -> None:
+def _add_module_commands(commands: argparse._SubParsersAction, chosen: str | None) -> None:
     for name, (module_name, help_text) in MODULE_COMMANDS.items():
-        module = importlib.import_module(module_name)
         sub = commands.add_parser(name, help=help_text, description=help_text)
-        module.add_arguments(sub)
-        sub.set_defaults(handler=module.run)
+        if name == chosen:
+            module = importlib.import_module(module_name)
+            module.add_arguments(sub)
+            sub.set_defaults(handler=module.run)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(next((a for a in argv if not a.startswith("-")), None))
     args = parser.parse_args(argv)
     try:
         return args.handler(args)

@@ -20,9 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="where the SQLite file and the token live (default ./mvo-gcs-data)",
     )
-    parser.add_argument(
-        "--workers", type=int, default=None, help="planning processes (default 2)"
-    )
+    parser.add_argument("--workers", type=int, default=None, help="planning processes (default 2)")
 
 
 def settings_from(args: argparse.Namespace) -> Settings:

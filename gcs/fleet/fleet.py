@@ -34,7 +34,7 @@ from gcs.fleet.events import (
     VehicleFinished,
     VehicleReady,
 )
-from gcs.fleet.route_tracker import RouteTracker, VehicleProgress, metres_between
+from gcs.fleet.route_tracker import RouteTracker, VehicleProgress
 from gcs.fleet.schedule_keeper import KeepingPolicy, decide
 from gcs.fleet.separation import SeparationTracker
 from gcs.mavlink.actions import FlightActions, ReadinessPolicy
@@ -44,6 +44,7 @@ from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Command, Mission
 from gcs.mavlink.mission_protocol import MissionClient, TransferPolicy, UploadResult
 from gcs.mission.build import Visit, fly_ideally
+from gcs.mission.geodesy import distance_m
 
 T = TypeVar("T")
 
@@ -418,7 +419,7 @@ class Fleet:
             if loop.time() > deadline:
                 raise FlightError(f"{member.uav_id}: the vehicle reports no position")
             await asyncio.sleep(self.settings.tick_s)
-        off = metres_between(position.lat, position.lon, *member.tracker.origin)
+        off = distance_m(position.lat, position.lon, *member.tracker.origin)
         if off > self.settings.start_tolerance_m:
             raise FlightError(
                 f"{member.uav_id} is {off:.1f} m from its start "
@@ -428,7 +429,7 @@ class Fleet:
 
     def _distance_to_goal(self, member: _Member) -> float:
         pos, goal = member.link.state.position, member.tracker.visits[-1]
-        return metres_between(pos.lat, pos.lon, goal.lat, goal.lon) if pos else float("nan")
+        return distance_m(pos.lat, pos.lon, goal.lat, goal.lon) if pos else float("nan")
 
     def _clock(self) -> float:
         return max(m.tracker.clock(m.link.state) for m in self._members.values())

@@ -9,22 +9,14 @@ plan clock minus that plan time: positive when the vehicle is behind its schedul
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from gcs.mavlink.vehicle_state import VehicleState
 from gcs.mission.build import Visit
+from gcs.mission.geodesy import distance_m
 
-EARTH_RADIUS_M = 6_371_008.8
 ARRIVED_M = 2.5  # within this of a hold waypoint and nearly still: the hold has begun
 STILL_M_S = 0.5
-
-
-def metres_between(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
-    """Horizontal distance; equirectangular, exact to millimetres over a few hundred metres."""
-    north = math.radians(lat2 - lat1) * EARTH_RADIUS_M
-    east = math.radians(lon2 - lon1) * EARTH_RADIUS_M * math.cos(math.radians((lat1 + lat2) / 2))
-    return math.hypot(east, north)
 
 
 @dataclass(frozen=True)
@@ -100,7 +92,7 @@ class RouteTracker:
         if done != len(self.visits) - 1 or state.position is None:
             return False
         last = self.visits[-1]
-        near = metres_between(state.position.lat, state.position.lon, last.lat, last.lon)
+        near = distance_m(state.position.lat, state.position.lon, last.lat, last.lon)
         return near <= ARRIVED_M
 
     def holding(self, state: VehicleState) -> bool:
@@ -133,7 +125,7 @@ class RouteTracker:
             return True
         if visit.leave <= visit.arrive or state.position is None:
             return False
-        near = metres_between(state.position.lat, state.position.lon, visit.lat, visit.lon)
+        near = distance_m(state.position.lat, state.position.lon, visit.lat, visit.lon)
         if near <= ARRIVED_M and state.groundspeed_m_s <= STILL_M_S:
             self._arrived_at[index] = self.clock(state)
             return True
@@ -152,8 +144,8 @@ class RouteTracker:
             start, leave = self.origin, 0.0
         if state.position is None:
             return leave
-        leg = metres_between(*start, target.lat, target.lon)
-        left = metres_between(state.position.lat, state.position.lon, target.lat, target.lon)
+        leg = distance_m(*start, target.lat, target.lon)
+        left = distance_m(state.position.lat, state.position.lon, target.lat, target.lon)
         fraction = 1.0 if leg <= 0 else min(1.0, max(0.0, 1.0 - left / leg))
         return leave + fraction * (target.arrive - leave)
 
@@ -161,7 +153,7 @@ class RouteTracker:
         done = len(self._passed_at)
         nxt = self.visits[done] if done < len(self.visits) else None
         pos = state.position
-        distance = metres_between(pos.lat, pos.lon, nxt.lat, nxt.lon) if pos and nxt else None
+        distance = distance_m(pos.lat, pos.lon, nxt.lat, nxt.lon) if pos and nxt else None
         speed = state.groundspeed_m_s
         clock, plan_time = self.clock(state), self.plan_time(state)
         return VehicleProgress(

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from gcs.fleet.route_tracker import VehicleProgress, metres_between
+from gcs.fleet.route_tracker import VehicleProgress
+from gcs.mission.geodesy import distance_m
 
 
 @dataclass(frozen=True)
@@ -59,4 +60,4 @@ def decide(
 def _near(a: VehicleProgress, b: VehicleProgress, limit_m: float | None) -> bool:
     if limit_m is None or None in (a.lat, a.lon, b.lat, b.lon):
         return True
-    return metres_between(a.lat, a.lon, b.lat, b.lon) <= limit_m  # type: ignore[arg-type]
+    return distance_m(a.lat, a.lon, b.lat, b.lon) <= limit_m  # type: ignore[arg-type]

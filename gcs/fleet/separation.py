@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from gcs.fleet.route_tracker import EARTH_RADIUS_M
+from gcs.mission.geodesy import TangentPlane
 
 
 @dataclass
@@ -36,8 +36,7 @@ class SeparationTracker:
     """Minimum horizontal distance between airborne vehicles over a flight."""
 
     def __init__(self, lat0: float, lon0: float) -> None:
-        self._lat0, self._lon0 = lat0, lon0
-        self._cos0 = math.cos(math.radians(lat0))
+        self._plane = TangentPlane(lat0, lon0)
         self._fixes: dict[str, _Fix] = {}
         self._first: dict[str, tuple[float, int]] = {}
         self.closest: Closest | None = None
@@ -55,8 +54,7 @@ class SeparationTracker:
         if not airborne:
             self._fixes.pop(uav_id, None)
             return
-        east = math.radians(lon - self._lon0) * EARTH_RADIUS_M * self._cos0
-        north = math.radians(lat - self._lat0) * EARTH_RADIUS_M
+        east, north = self._plane.east_north(lat, lon)
         fix = _Fix(
             east,
             north,
@@ -83,4 +81,5 @@ class SeparationTracker:
         north = other.north + other.v_north * dt
         distance = math.hypot(fix.east - east, fix.north - north)
         if self.closest is None or distance < self.closest.distance_m:
-            self.closest = Closest(distance, tuple(sorted((uav_id, other_id))), fix.wall)
+            first, second = sorted((uav_id, other_id))
+            self.closest = Closest(distance, (first, second), fix.wall)

@@ -13,7 +13,9 @@ import asyncio
 import math
 from dataclasses import dataclass
 
-from gcs.mavlink.commands import Cmd, CommandAck, CommandPolicy, send_command
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs.mavlink.commands import CommandAck, CommandPolicy, send_command
 from gcs.mavlink.errors import (
     CommandFailedError,
     CommandTemporarilyRejectedError,
@@ -22,9 +24,9 @@ from gcs.mavlink.errors import (
 )
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot
-from gcs.mavlink.modes import PX4_MODES, custom_mode
+from gcs.mavlink.modes import custom_mode, px4_main_sub
 
-MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
+MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 NOT_READY_HINTS = (
     "prearm",
     "need position",
@@ -77,25 +79,31 @@ class FlightActions:
     async def set_mode(self, name: str) -> None:
         autopilot = self.link.autopilot
         if autopilot == Autopilot.PX4:
-            main, sub = PX4_MODES[name.upper()]
-            await self.command(Cmd.DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub)
+            main, sub = px4_main_sub(name)
+            await self.command(
+                mavlink2.MAV_CMD_DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub
+            )
         else:
             mode = custom_mode(autopilot, name)
-            await self.command(Cmd.DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode)
+            await self.command(
+                mavlink2.MAV_CMD_DO_SET_MODE, MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, mode
+            )
 
     async def arm(self) -> None:
-        await self.command(Cmd.COMPONENT_ARM_DISARM, 1)
+        await self.command(mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 1)
 
     async def disarm(self) -> None:
-        await self.command(Cmd.COMPONENT_ARM_DISARM, 0)
+        await self.command(mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0)
 
     async def takeoff(self, altitude_m: float) -> None:
         if self.link.autopilot == Autopilot.PX4:
             home = self.link.state.home
             amsl = (home.alt_amsl_m if home else 0.0) + altitude_m
-            await self.command(Cmd.NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, amsl)
+            await self.command(
+                mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, amsl
+            )
         else:
-            await self.command(Cmd.NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, altitude_m)
+            await self.command(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, altitude_m)
 
     async def arm_and_take_off(self, altitude_m: float) -> None:
         """GUIDED, arm as soon as the vehicle can, take off; retried while "not ready"."""
@@ -136,13 +144,13 @@ class FlightActions:
     async def start_mission(self) -> None:
         """AUTO, then MISSION_START (needed from the ground, harmless in the air)."""
         await self.set_mode("AUTO")
-        await self.command(Cmd.MISSION_START, 0, 0)
+        await self.command(mavlink2.MAV_CMD_MISSION_START, 0, 0)
 
     async def pause(self) -> None:
-        await self.command(Cmd.DO_PAUSE_CONTINUE, 0)
+        await self.command(mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, 0)
 
     async def resume(self) -> None:
-        await self.command(Cmd.DO_PAUSE_CONTINUE, 1)
+        await self.command(mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, 1)
 
     async def return_to_launch(self) -> None:
         await self.set_mode("RTL")

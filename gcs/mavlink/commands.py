@@ -2,36 +2,24 @@
 
 A command is re-sent when its ACK does not come, with `confirmation` counting the
 attempts; IN_PROGRESS extends the wait without re-sending; any other result ends in
-a typed error that carries the STATUSTEXT the vehicle sent with it ("PreArm: ...").
+a typed error that carries every STATUSTEXT the vehicle sent with that attempt (real
+ArduCopter explains one refused arming with several: "Arm: Accels inconsistent",
+"Arm: Gyros inconsistent", ...). Command numbers are pymavlink's `MAV_CMD_*`.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from gcs.mavlink.errors import CommandResult, CommandTimeoutError, WaitTimeoutError, command_error
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-if TYPE_CHECKING:
-    from gcs.mavlink.link import VehicleLink
+from gcs.mavlink.errors import CommandTimeoutError, WaitTimeoutError, command_error
+from gcs.mavlink.link import VehicleLink
 
 STATUSTEXT_GRACE_S = 0.15  # a failure's explanation may trail its ACK
-
-
-class Cmd:
-    """MAV_CMD values the ground station sends."""
-
-    NAV_RETURN_TO_LAUNCH = 20
-    NAV_LAND = 21
-    NAV_TAKEOFF = 22
-    DO_SET_MODE = 176
-    DO_PAUSE_CONTINUE = 193
-    DO_SET_MISSION_CURRENT = 224
-    MISSION_START = 300
-    COMPONENT_ARM_DISARM = 400
-    SET_MESSAGE_INTERVAL = 511
-    REQUEST_MESSAGE = 512
 
 
 @dataclass(frozen=True)
@@ -81,7 +69,7 @@ async def send_command_int(
     lat_e7: int = 0,
     lon_e7: int = 0,
     alt: float = 0.0,
-    frame: int = 6,
+    frame: int = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
     policy: CommandPolicy | None = None,
 ) -> CommandAck:
     """COMMAND_INT, for commands with a position (it has no confirmation field)."""
@@ -98,25 +86,25 @@ async def send_command_int(
 async def _exchange(
     link: VehicleLink, command: int, encode: Any, policy: CommandPolicy
 ) -> CommandAck:
-    texts: list[str] = []
     with link.subscribe(["COMMAND_ACK", "STATUSTEXT"]) as sub:
         for attempt in range(policy.retries + 1):
+            texts: list[str] = []  # what the vehicle said about this attempt
             link.send(encode(attempt))
             try:
                 ack = await _await_ack(sub, command, policy.timeout_s, texts)
             except WaitTimeoutError:
                 continue
-            if ack.result == CommandResult.IN_PROGRESS:
+            if ack.result == mavlink2.MAV_RESULT_IN_PROGRESS:
                 ack = await _await_final_ack(link, sub, command, policy, texts)
-            if ack.result == CommandResult.ACCEPTED:
+            if ack.result == mavlink2.MAV_RESULT_ACCEPTED:
                 return CommandAck(command, ack.result, attempt + 1, "; ".join(texts))
-            await _collect_trailing_text(sub, texts)
+            await _collect_trailing_texts(sub, texts)
             raise command_error(link.sysid, command, ack.result, "; ".join(texts))
     raise CommandTimeoutError(
         link.sysid,
         command,
         None,
-        "; ".join(texts),
+        "",
         detail=f"not acknowledged after {policy.retries + 1} attempts of {policy.timeout_s:.2f} s",
     )
 
@@ -141,29 +129,29 @@ async def _await_final_ack(
     try:
         while True:
             ack = await _await_ack(sub, command, max(0.0, deadline - loop.time()), texts)
-            if ack.result != CommandResult.IN_PROGRESS:
+            if ack.result != mavlink2.MAV_RESULT_IN_PROGRESS:
                 return ack
     except WaitTimeoutError:
         raise CommandTimeoutError(
             link.sysid,
             command,
-            CommandResult.IN_PROGRESS,
+            mavlink2.MAV_RESULT_IN_PROGRESS,
             "; ".join(texts),
             detail=f"still in progress after {policy.in_progress_timeout_s:.1f} s",
         ) from None
 
 
-async def _collect_trailing_text(sub: Any, texts: list[str]) -> None:
-    """A refusal's reason, if the vehicle sends it right after the ACK."""
-    if texts:
-        return
-    try:
-        while not texts:
-            msg = await sub.get(STATUSTEXT_GRACE_S)
-            if msg.get_type() == "STATUSTEXT":
-                texts.append(_text(msg))
-    except WaitTimeoutError:
-        pass
+async def _collect_trailing_texts(sub: Any, texts: list[str]) -> None:
+    """The rest of a refusal's reasons, if the vehicle sends some right after the ACK."""
+    deadline = asyncio.get_running_loop().time() + STATUSTEXT_GRACE_S
+    with contextlib.suppress(WaitTimeoutError):
+        while True:
+            msg = await sub.next_matching(_is_text, deadline - asyncio.get_running_loop().time())
+            texts.append(_text(msg))
+
+
+def _is_text(msg: Any) -> bool:
+    return bool(msg.get_type() == "STATUSTEXT")
 
 
 def _text(msg: Any) -> str:

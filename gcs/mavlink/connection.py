@@ -1,48 +1,105 @@
 """One MAVLink 2 endpoint: the codec, our GCS identity and heartbeat, and demultiplexing.
 
-Several vehicles may speak through one connection (a udpin port many vehicles send
-to); each message goes to the handler registered for its sender's system id, so two
-vehicles sharing a port never see each other's traffic. Sending remembers which
-address a system id spoke from and answers it there.
+A connection is handed a byte transport (sockets, or memory in tests). Several vehicles
+may speak through one connection (a udpin port many vehicles send to); each message goes
+to the handler registered for its sender's system id, so two vehicles sharing a port
+never see each other's traffic. On a listening port the first address a system id's
+HEARTBEAT comes from speaks for that system from then on: packets claiming that system
+id from any other address are dropped and counted (`ignored`), so a local process cannot
+pose as a vehicle. With a signing key, every packet we send is signed and every packet
+that is unsigned or wrongly signed is dropped and counted the same way.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import time
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs.mavlink.endpoint import Endpoint
 from gcs.mavlink.transport import ByteTransport, Peer, open_transport
 
 GCS_SYSID = 255
-GCS_COMPID = 190  # MAV_COMP_ID_MISSIONPLANNER, as QGroundControl
+GCS_COMPID = mavlink2.MAV_COMP_ID_MISSIONPLANNER  # 190, as QGroundControl
 HEARTBEAT_PERIOD_S = 1.0
+SIGNING_EPOCH = 1420070400  # MAVLink signing timestamps count from 2015-01-01
+RELOCK_AFTER_S = 10.0  # a system silent this long may speak from a new address
 
-Message = mavlink2.MAVLink_message
+Message = Any
+"""A decoded pymavlink message (`mavlink2.MAVLink_message`); untyped in pymavlink."""
 Handler = Callable[[Message], None]
 
 
-class MavConnection:
-    """A connection string opened as MAVLink 2, shared by the vehicle links on it."""
+@dataclass(frozen=True)
+class Signing:
+    """MAVLink 2 message signing: a 32-byte secret shared with the vehicle."""
 
-    def __init__(self, url: str) -> None:
-        self.url = url
+    key: bytes
+    link_id: int = 0
+
+    def __post_init__(self) -> None:
+        if len(self.key) != 32:
+            raise ValueError(f"a MAVLink signing key has 32 bytes, got {len(self.key)}")
+
+    def apply(self, codec: Any, *, outgoing: bool) -> None:
+        codec.signing.secret_key = self.key
+        codec.signing.link_id = self.link_id
+        codec.signing.sign_outgoing = outgoing
+        codec.signing.allow_unsigned_callback = None  # unsigned packets are refused
+        codec.signing.timestamp = int((time.time() - SIGNING_EPOCH) * 100_000)
+
+
+@dataclass
+class _Speaker:
+    """The address a system id speaks from, and when it last did."""
+
+    peer: Peer
+    heard: float
+
+
+class MavConnection:
+    """A byte transport spoken as MAVLink 2, shared by the vehicle links on it."""
+
+    def __init__(
+        self,
+        transport: ByteTransport,
+        *,
+        name: str = "memory",
+        signing: Signing | None = None,
+        heartbeat: bool = True,
+    ) -> None:
+        self.name = name
+        self.signing = signing
         self.codec = mavlink2.MAVLink(None, srcSystem=GCS_SYSID, srcComponent=GCS_COMPID)
-        self._transport: ByteTransport | None = None
-        self._parsers: dict[Peer, mavlink2.MAVLink] = {}
+        if signing is not None:
+            signing.apply(self.codec, outgoing=True)
+        self.ignored = 0  # packets dropped: a spoofed sender, a bad or missing signature
+        self._transport: ByteTransport | None = transport
+        self._parsers: dict[Peer, Any] = {}
         self._handlers: dict[int, Handler] = {}
-        self._any_handlers: list[Handler] = []
-        self._peer_of: dict[int, Peer] = {}
-        self._heartbeat: asyncio.Task[None] | None = None
+        self._listeners: list[Handler] = []
+        self._speakers: dict[int, _Speaker] = {}
+        self._loop = asyncio.get_running_loop()
+        transport.set_receiver(self._received)
+        self._heartbeat = asyncio.ensure_future(self._send_heartbeats()) if heartbeat else None
 
     @classmethod
-    async def open(cls, url: str) -> MavConnection:
-        connection = cls(url)
-        connection._transport = await open_transport(url, connection._received)
-        connection._heartbeat = asyncio.create_task(connection._send_heartbeats())
-        return connection
+    async def open(cls, url: str | Endpoint, *, signing: Signing | None = None) -> MavConnection:
+        """Open the socket a connection string names."""
+        endpoint = url if isinstance(url, Endpoint) else Endpoint.parse(url)
+        transport = await open_transport(endpoint)
+        return cls(transport, name=str(endpoint), signing=signing)
+
+    @property
+    def dropped(self) -> int:
+        """Every packet not taken: by the transport (wrong address) or by us."""
+        transport_ignored = self._transport.ignored if self._transport is not None else 0
+        return self.ignored + transport_ignored
 
     # --- receiving ---------------------------------------------------------------------
 
@@ -51,16 +108,37 @@ class MavConnection:
         if parser is None:
             parser = self._parsers[peer] = mavlink2.MAVLink(None)
             parser.robust_parsing = True
+            if self.signing is not None:
+                self.signing.apply(parser, outgoing=False)
         for msg in parser.parse_buffer(data) or ():
             if msg.get_type() == "BAD_DATA":
+                self.ignored += int(self.signing is not None and _is_packet(msg))
                 continue
-            sysid = msg.get_srcSystem()
-            self._peer_of[sysid] = peer
-            handler = self._handlers.get(sysid)
-            if handler is not None:
-                handler(msg)
-            for listener in list(self._any_handlers):
-                listener(msg)
+            if self._admitted(msg, peer):
+                self._dispatch(msg)
+
+    def _admitted(self, msg: Message, peer: Peer) -> bool:
+        """True unless the message claims a system that speaks from another address."""
+        sysid, now = msg.get_srcSystem(), self._loop.time()
+        speaker = self._speakers.get(sysid)
+        if speaker is None or speaker.peer == peer:
+            if speaker is not None:
+                speaker.heard = now
+            elif msg.get_type() == "HEARTBEAT":
+                self._speakers[sysid] = _Speaker(peer, now)
+            return True
+        if msg.get_type() == "HEARTBEAT" and now - speaker.heard > RELOCK_AFTER_S:
+            self._speakers[sysid] = _Speaker(peer, now)  # the vehicle came back elsewhere
+            return True
+        self.ignored += 1
+        return False
+
+    def _dispatch(self, msg: Message) -> None:
+        handler = self._handlers.get(msg.get_srcSystem())
+        if handler is not None:
+            handler(msg)
+        for listener in list(self._listeners):
+            listener(msg)
 
     def attach(self, sysid: int, handler: Handler) -> None:
         """Send every message from `sysid` to `handler` (one handler per system id)."""
@@ -71,8 +149,12 @@ class MavConnection:
 
     def listen(self, handler: Handler) -> Callable[[], None]:
         """Also see every message from every system (discovery); returns the remover."""
-        self._any_handlers.append(handler)
-        return lambda: self._any_handlers.remove(handler)
+        self._listeners.append(handler)
+        return lambda: self._listeners.remove(handler)
+
+    def systems(self) -> list[int]:
+        """Every system id that has sent a HEARTBEAT here."""
+        return sorted(self._speakers)
 
     # --- sending -----------------------------------------------------------------------
 
@@ -81,14 +163,12 @@ class MavConnection:
         if self._transport is None:
             return
         data = msg.pack(self.codec)
-        peer = self._peer_of.get(sysid) if sysid is not None else None
-        if peer is None and sysid is not None and sysid in self._peer_of:
-            self._transport.send(data)  # a TCP stream: no address
-        elif peer is None:
-            for target in self._transport.peers():
-                self._transport.send(data, target)
-        else:
-            self._transport.send(data, peer)
+        speaker = self._speakers.get(sysid) if sysid is not None else None
+        if speaker is not None:
+            self._transport.send(data, speaker.peer)
+            return
+        for target in self._transport.peers():
+            self._transport.send(data, target)
 
     async def _send_heartbeats(self) -> None:
         beat = self.codec.heartbeat_encode(
@@ -103,6 +183,12 @@ class MavConnection:
             self._heartbeat.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await self._heartbeat
+            self._heartbeat = None
         if self._transport is not None:
             self._transport.close()
             self._transport = None
+
+
+def _is_packet(bad: Message) -> bool:
+    """A BAD_DATA that held a whole packet (refused for its signature), not line noise."""
+    return "signature" in str(getattr(bad, "reason", "")).lower()

@@ -103,7 +103,11 @@ def _host(text: str, url: str) -> str:
     except ValueError:
         pass
     name = text.lower().rstrip(".")
-    if not name.isascii() or len(name) > 253 or not all(map(_HOST_LABEL.fullmatch, name.split("."))):
+    if (
+        not name.isascii()
+        or len(name) > 253
+        or not all(map(_HOST_LABEL.fullmatch, name.split(".")))
+    ):
         raise EndpointError(f"{url!r}: {text!r} is neither an IP address nor a host name")
     if all(label.isdigit() for label in name.split(".")):
         raise EndpointError(f"{url!r}: {text!r} is not a valid IPv4 address")

@@ -8,38 +8,41 @@ from __future__ import annotations
 
 from enum import IntEnum
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
 
 class MissionResult(IntEnum):
-    """MAV_MISSION_RESULT, the `type` of MISSION_ACK."""
+    """MAV_MISSION_RESULT, the `type` of MISSION_ACK (pymavlink's numbers)."""
 
-    ACCEPTED = 0
-    ERROR = 1
-    UNSUPPORTED_FRAME = 2
-    UNSUPPORTED = 3
-    NO_SPACE = 4
-    INVALID = 5
-    INVALID_PARAM1 = 6
-    INVALID_PARAM2 = 7
-    INVALID_PARAM3 = 8
-    INVALID_PARAM4 = 9
-    INVALID_PARAM5_X = 10
-    INVALID_PARAM6_Y = 11
-    INVALID_PARAM7 = 12
-    INVALID_SEQUENCE = 13
-    DENIED = 14
-    OPERATION_CANCELLED = 15
+    ACCEPTED = mavlink2.MAV_MISSION_ACCEPTED
+    ERROR = mavlink2.MAV_MISSION_ERROR
+    UNSUPPORTED_FRAME = mavlink2.MAV_MISSION_UNSUPPORTED_FRAME
+    UNSUPPORTED = mavlink2.MAV_MISSION_UNSUPPORTED
+    NO_SPACE = mavlink2.MAV_MISSION_NO_SPACE
+    INVALID = mavlink2.MAV_MISSION_INVALID
+    INVALID_PARAM1 = mavlink2.MAV_MISSION_INVALID_PARAM1
+    INVALID_PARAM2 = mavlink2.MAV_MISSION_INVALID_PARAM2
+    INVALID_PARAM3 = mavlink2.MAV_MISSION_INVALID_PARAM3
+    INVALID_PARAM4 = mavlink2.MAV_MISSION_INVALID_PARAM4
+    INVALID_PARAM5_X = mavlink2.MAV_MISSION_INVALID_PARAM5_X
+    INVALID_PARAM6_Y = mavlink2.MAV_MISSION_INVALID_PARAM6_Y
+    INVALID_PARAM7 = mavlink2.MAV_MISSION_INVALID_PARAM7
+    INVALID_SEQUENCE = mavlink2.MAV_MISSION_INVALID_SEQUENCE
+    DENIED = mavlink2.MAV_MISSION_DENIED
+    OPERATION_CANCELLED = mavlink2.MAV_MISSION_OPERATION_CANCELLED
 
 
 class CommandResult(IntEnum):
     """MAV_RESULT, the `result` of COMMAND_ACK (the ones a GCS acts on)."""
 
-    ACCEPTED = 0
-    TEMPORARILY_REJECTED = 1
-    DENIED = 2
-    UNSUPPORTED = 3
-    FAILED = 4
-    IN_PROGRESS = 5
-    CANCELLED = 6
+    ACCEPTED = mavlink2.MAV_RESULT_ACCEPTED
+    TEMPORARILY_REJECTED = mavlink2.MAV_RESULT_TEMPORARILY_REJECTED
+    DENIED = mavlink2.MAV_RESULT_DENIED
+    UNSUPPORTED = mavlink2.MAV_RESULT_UNSUPPORTED
+    FAILED = mavlink2.MAV_RESULT_FAILED
+    IN_PROGRESS = mavlink2.MAV_RESULT_IN_PROGRESS
+    # MAV_RESULT_CANCELLED (6) is newer than pymavlink 2.4.50's ardupilotmega dialect.
+    CANCELLED = getattr(mavlink2, "MAV_RESULT_CANCELLED", 6)
 
 
 class GcsError(Exception):
@@ -156,7 +159,10 @@ _MISSION_ERRORS: dict[int, type[MissionRejectedError]] = {
     MissionResult.UNSUPPORTED: UnsupportedCommandError,
     MissionResult.NO_SPACE: NoSpaceError,
     MissionResult.INVALID: InvalidMissionError,
-    **{r: InvalidParamError for r in range(MissionResult.INVALID_PARAM1, 13)},
+    **{
+        r: InvalidParamError
+        for r in range(MissionResult.INVALID_PARAM1, MissionResult.INVALID_PARAM7 + 1)
+    },
     MissionResult.INVALID_SEQUENCE: InvalidSequenceError,
     MissionResult.DENIED: MissionDeniedError,
     MissionResult.OPERATION_CANCELLED: MissionCancelledError,
@@ -188,7 +194,7 @@ class CommandError(GcsError):
         self, sysid: int, command: int, result: int | None, statustext: str = "", detail: str = ""
     ) -> None:
         name = _command_name(command)
-        outcome = detail or (CommandResult(result).name if result in _RESULTS else f"{result}")
+        outcome = detail or _result_text(result)
         why = f": {statustext}" if statustext else ""
         super().__init__(f"vehicle {sysid}: {name} {outcome}{why}")
         self.sysid = sysid
@@ -227,29 +233,18 @@ _COMMAND_ERRORS: dict[int, type[CommandError]] = {
 }
 
 
+def _result_text(result: int | None) -> str:
+    return CommandResult(result).name if result is not None and result in _RESULTS else f"{result}"
+
+
 def command_error(sysid: int, command: int, result: int, statustext: str = "") -> CommandError:
     """The typed error for a COMMAND_ACK result other than ACCEPTED or IN_PROGRESS."""
     return _COMMAND_ERRORS.get(result, CommandError)(sysid, command, result, statustext)
 
 
-_COMMAND_NAMES = {
-    16: "NAV_WAYPOINT",
-    20: "NAV_RETURN_TO_LAUNCH",
-    21: "NAV_LAND",
-    22: "NAV_TAKEOFF",
-    176: "DO_SET_MODE",
-    193: "DO_PAUSE_CONTINUE",
-    224: "DO_SET_MISSION_CURRENT",
-    246: "PREFLIGHT_REBOOT_SHUTDOWN",
-    300: "MISSION_START",
-    400: "COMPONENT_ARM_DISARM",
-    511: "SET_MESSAGE_INTERVAL",
-    512: "REQUEST_MESSAGE",
-}
-
-
 def _command_name(command: int) -> str:
-    return _COMMAND_NAMES.get(command, f"command {command}")
+    entry = mavlink2.enums["MAV_CMD"].get(command)
+    return entry.name.removeprefix("MAV_CMD_") if entry is not None else f"command {command}"
 
 
 # --- flying ----------------------------------------------------------------------------

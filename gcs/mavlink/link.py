@@ -1,41 +1,41 @@
 """The ground station's link to one vehicle: identity, live state, subscriptions, waits.
 
-`VehicleLink.connect(url)` opens the connection, waits for the autopilot's HEARTBEAT
-(learning its system id and flavour, ignoring cameras, gimbals and other ground
-stations), asks for the telemetry streams the GCS needs (a real ArduPilot sends
-nothing but HEARTBEAT until asked) and then keeps `state` current. Everything that
-waits on the vehicle does so through a bounded subscription; a link loss or a reboot
-is delivered to those subscriptions as an exception, so no exchange outlives it.
+A link is made from the autopilot's first HEARTBEAT on a connection (`gcs.mavlink.client`
+finds it, ignoring cameras, gimbals and other ground stations) and then keeps `state`
+current. Everything that waits on the vehicle does so through a bounded subscription; a
+link loss or a reboot is delivered to those subscriptions as an exception, so no
+exchange outlives it. What happens to the link itself (regained after a loss, a reboot,
+a gap in the heartbeats) is told to `on_event` listeners, such as the telemetry streams
+that must then be asked for again: the link itself sends no commands.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Coroutine, Iterable
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import Any
 
 from gcs.mavlink.connection import GCS_COMPID, GCS_SYSID, MavConnection, Message
-from gcs.mavlink.errors import (
-    ConnectTimeoutError,
-    GcsError,
-    LinkLostError,
-    VehicleRebootedError,
-    WaitTimeoutError,
-)
+from gcs.mavlink.errors import LinkLostError, VehicleRebootedError
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.subscription import Predicate, Subscription
 from gcs.mavlink.vehicle_state import MAV_STATE_BOOT, VehicleState
 
-MAV_AUTOPILOT_INVALID = 8
-NOT_AUTOPILOT_TYPES = frozenset({6, 18, 26, 27, 30})  # GCS, onboard computer, gimbal, ADSB, camera
 BOOT_TIME_JUMP_MS = 2000  # time_boot_ms going back by more than this means a reboot
 HEARTBEAT_GAP_FACTOR = 1.8  # one heartbeat missed makes a gap (checked, not trusted)
 MIN_GAP_S = 0.05
 WATCHDOG_PERIOD_S = 0.2
+CLOSE_TIMEOUT_S = 2.0
 
 Callback = Callable[[Message], None]
+
+
+class LinkEvent(Enum):
+    REGAINED = "regained"  # heard again after the link was down
+    REBOOTED = "rebooted"  # the vehicle restarted: whatever it was asked is forgotten
+    GAP = "gap"  # a silence of several heartbeats: it may have rebooted unseen
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,7 @@ class LinkSettings:
     connect_timeout_s: float = 10.0
     link_timeout_s: float = 4.0  # silence after which the link is down (notes: 3-5 s)
     request_streams: bool = True
+    boot_timeout_s: float = 30.0  # how long an exchange waits for a booting vehicle
     stream_rates_hz: dict[str, float] = field(
         default_factory=lambda: {
             "GLOBAL_POSITION_INT": 5.0,
@@ -64,66 +65,29 @@ class VehicleLink:
         self,
         connection: MavConnection,
         heartbeat: Message,
-        settings: LinkSettings,
-        owns_connection: bool,
+        settings: LinkSettings | None = None,
+        *,
+        owns_connection: bool = False,
     ) -> None:
         self.connection = connection
-        self.settings = settings
+        self.settings = settings or LinkSettings()
         self.sysid: int = heartbeat.get_srcSystem()
         self.compid: int = heartbeat.get_srcComponent()
-        self.autopilot = (
-            Autopilot(heartbeat.autopilot)
-            if heartbeat.autopilot in (3, 12)
-            else (Autopilot.ARDUPILOT)
-        )
+        self.autopilot = Autopilot.of(heartbeat.autopilot)
         self.state = VehicleState(self.sysid, int(self.autopilot))
         self._owns_connection = owns_connection
         self._subscriptions: list[Subscription] = []
         self._callbacks: list[tuple[frozenset[str] | None, Callback]] = []
+        self._event_listeners: list[Callable[[LinkEvent], None]] = []
         self._loop = asyncio.get_running_loop()
         self._tasks: set[asyncio.Task[Any]] = set()
         self._ever_lost = False
+        self._closed = False
         self._last_heartbeat: float | None = None
-        self._heartbeat_period_s: float | None = None
+        self.heartbeat_period_s: float | None = None
         self._received(heartbeat)
         connection.attach(self.sysid, self._received)
-        self._spawn(self._watchdog())
-
-    # --- opening -----------------------------------------------------------------------
-
-    @classmethod
-    async def connect(
-        cls, url: str, *, sysid: int | None = None, settings: LinkSettings | None = None
-    ) -> VehicleLink:
-        """Open `url` and the link to the autopilot `sysid` (the first one heard if None)."""
-        connection = await MavConnection.open(url)
-        try:
-            return await cls.attach(connection, sysid=sysid, settings=settings, owns=True)
-        except BaseException:
-            await connection.close()
-            raise
-
-    @classmethod
-    async def attach(
-        cls,
-        connection: MavConnection,
-        *,
-        sysid: int | None = None,
-        settings: LinkSettings | None = None,
-        owns: bool = False,
-    ) -> VehicleLink:
-        """A link on an already open connection (several vehicles on one port)."""
-        settings = settings or LinkSettings()
-        heartbeat = await _first_autopilot_heartbeat(connection, sysid, settings.connect_timeout_s)
-        link = cls(connection, heartbeat, settings, owns)
-        if settings.request_streams:
-            await link.request_streams()
-        return link
-
-    async def request_streams(self) -> None:
-        from gcs.mavlink.telemetry import request_telemetry  # uses commands, which use us
-
-        await request_telemetry(self, self.settings.stream_rates_hz)
+        self.spawn(self._watchdog())
 
     # --- sending -----------------------------------------------------------------------
 
@@ -153,7 +117,20 @@ class VehicleLink:
         """Call `callback(msg)` for each message of `types`; returns the function that stops it."""
         entry = (frozenset(types) if types else None, callback)
         self._callbacks.append(entry)
-        return lambda: self._callbacks.remove(entry)
+
+        def remove() -> None:
+            if entry in self._callbacks:
+                self._callbacks.remove(entry)
+
+        return remove
+
+    @property
+    def callback_count(self) -> int:
+        """How many message callbacks are registered (a flight that ended leaves none)."""
+        return len(self._callbacks)
+
+    def on_event(self, listener: Callable[[LinkEvent], None]) -> None:
+        self._event_listeners.append(listener)
 
     async def wait_for(
         self, msg_type: str, predicate: Predicate | None = None, timeout: float = 1.5
@@ -167,12 +144,12 @@ class VehicleLink:
             return
         now = self._loop.time()
         if self._is_reboot(msg):
-            self._rebooted()
+            self.declare_rebooted()
         gap = msg.get_type() == "HEARTBEAT" and self._after_gap(now)
         if not self.state.link_up:
             self._link_regained()
         elif gap:
-            self._spawn(self._check_streams_after_gap())
+            self._tell(LinkEvent.GAP)
         self.state.apply(msg, now)
         msg_type = msg.get_type()
         for sub in list(self._subscriptions):
@@ -199,39 +176,26 @@ class VehicleLink:
         last, self._last_heartbeat = self._last_heartbeat, now
         if last is None:
             return False
-        interval, period = now - last, self._heartbeat_period_s
-        self._heartbeat_period_s = interval if period is None else 0.9 * period + 0.1 * interval
+        interval, period = now - last, self.heartbeat_period_s
+        self.heartbeat_period_s = interval if period is None else 0.9 * period + 0.1 * interval
         return period is not None and interval > max(HEARTBEAT_GAP_FACTOR * period, MIN_GAP_S)
 
-    def _rebooted(self) -> None:
+    def declare_rebooted(self) -> None:
+        """The vehicle restarted (seen here, or by a listener that knows what it forgot)."""
         self.state.reboots += 1
         self.state.reached.clear()
         self.state.time_boot_ms = 0
         self._fault(VehicleRebootedError(f"vehicle {self.sysid} rebooted"))
-        if self.settings.request_streams:
-            self._spawn(self._rerequest_streams())
+        self._tell(LinkEvent.REBOOTED)
 
     def _link_regained(self) -> None:
         self.state.link_up = True
-        if self._ever_lost and self.settings.request_streams:
-            self._spawn(self._rerequest_streams())
+        if self._ever_lost:
+            self._tell(LinkEvent.REGAINED)
 
-    async def _check_streams_after_gap(self) -> None:
-        """A vehicle that forgot the streams we asked for has rebooted (its uptime, status
-        BOOT or mission count may say so too, but not every autopilot shows them)."""
-        if not self.settings.request_streams:
-            return
-        period = self._heartbeat_period_s or 1.0
-        try:
-            await self.wait_for("GLOBAL_POSITION_INT", timeout=max(4 * period, 0.2))
-        except WaitTimeoutError:
-            self._rebooted()
-        except GcsError:
-            pass
-
-    async def _rerequest_streams(self) -> None:
-        with contextlib.suppress(Exception):
-            await self.request_streams()
+    def _tell(self, event: LinkEvent) -> None:
+        for listener in list(self._event_listeners):
+            listener(event)
 
     async def _watchdog(self) -> None:
         while True:
@@ -252,21 +216,30 @@ class VehicleLink:
         if not self.state.link_up:
             raise LinkLostError(f"vehicle {self.sysid}: link is down")
 
-    def _spawn(self, coro: Any) -> None:
+    def spawn(self, coro: Coroutine[Any, Any, Any]) -> None:
+        """Run `coro` for as long as the link lives (cancelled by `close`)."""
+        if self._closed:
+            coro.close()
+            return
         task = asyncio.ensure_future(coro)
         self._tasks.add(task)
         task.add_done_callback(self._tasks.discard)
 
     async def close(self) -> None:
+        """Stop everything this link runs; bounded, even if a task ignores cancellation."""
+        self._closed = True
         self.connection.detach(self.sysid)
-        for task in list(self._tasks):
+        self._fault(LinkLostError(f"vehicle {self.sysid}: link closed"))
+        tasks = list(self._tasks)
+        for task in tasks:
             task.cancel()
-        await asyncio.gather(*self._tasks, return_exceptions=True)
+        if tasks:
+            await asyncio.wait(tasks, timeout=CLOSE_TIMEOUT_S)
         if self._owns_connection:
             await self.connection.close()
 
     def __repr__(self) -> str:
-        return f"VehicleLink({self.connection.url!r}, sysid={self.sysid}, {self.autopilot.name})"
+        return f"VehicleLink({self.connection.name!r}, sysid={self.sysid}, {self.autopilot.name})"
 
 
 def _addressed_to_us(msg: Message) -> bool:
@@ -274,33 +247,3 @@ def _addressed_to_us(msg: Message) -> bool:
     target = getattr(msg, "target_system", 0)
     component = getattr(msg, "target_component", 0)
     return target in (0, GCS_SYSID) and component in (0, GCS_COMPID)
-
-
-def _is_autopilot_heartbeat(msg: Message, sysid: int | None) -> bool:
-    return (
-        msg.get_type() == "HEARTBEAT"
-        and msg.autopilot != MAV_AUTOPILOT_INVALID
-        and msg.type not in NOT_AUTOPILOT_TYPES
-        and (sysid is None or msg.get_srcSystem() == sysid)
-    )
-
-
-async def _first_autopilot_heartbeat(
-    connection: MavConnection, sysid: int | None, timeout: float
-) -> Message:
-    found: asyncio.Future[Message] = asyncio.get_running_loop().create_future()
-
-    def look(msg: Message) -> None:
-        if not found.done() and _is_autopilot_heartbeat(msg, sysid):
-            found.set_result(msg)
-
-    stop = connection.listen(look)
-    try:
-        return await asyncio.wait_for(found, timeout)
-    except TimeoutError:
-        who = f"autopilot {sysid}" if sysid is not None else "an autopilot"
-        raise ConnectTimeoutError(
-            f"no HEARTBEAT from {who} on {connection.url} within {timeout:.1f} s"
-        ) from None
-    finally:
-        stop()

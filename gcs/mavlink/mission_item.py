@@ -13,29 +13,39 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 
 class Frame(IntEnum):
-    GLOBAL = 0  # what ArduPilot reports for the home item (seq 0)
-    MISSION = 2  # for DO_ commands, which have no position
-    GLOBAL_RELATIVE_ALT = 3
-    GLOBAL_RELATIVE_ALT_INT = 6
+    """The MAV_FRAMEs the ground station writes or reads back (pymavlink's numbers)."""
+
+    GLOBAL = mavlink2.MAV_FRAME_GLOBAL  # ArduPilot's home item (seq 0); DO items read back
+    MISSION = mavlink2.MAV_FRAME_MISSION  # for DO_ commands, which have no position
+    GLOBAL_RELATIVE_ALT = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT
+    GLOBAL_RELATIVE_ALT_INT = mavlink2.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 
 
 class Command(IntEnum):
-    NAV_WAYPOINT = 16
-    NAV_LOITER_TIME = 19
-    NAV_RETURN_TO_LAUNCH = 20
-    NAV_LAND = 21
-    NAV_TAKEOFF = 22
-    DO_CHANGE_SPEED = 178
+    """The MAV_CMDs a mission of ours holds."""
+
+    NAV_WAYPOINT = mavlink2.MAV_CMD_NAV_WAYPOINT
+    NAV_LOITER_TIME = mavlink2.MAV_CMD_NAV_LOITER_TIME
+    NAV_RETURN_TO_LAUNCH = mavlink2.MAV_CMD_NAV_RETURN_TO_LAUNCH
+    NAV_LAND = mavlink2.MAV_CMD_NAV_LAND
+    NAV_TAKEOFF = mavlink2.MAV_CMD_NAV_TAKEOFF
+    DO_CHANGE_SPEED = mavlink2.MAV_CMD_DO_CHANGE_SPEED
 
 
 class Autopilot(IntEnum):
     """The HEARTBEAT's autopilot field; it decides whether item 0 is home."""
 
-    ARDUPILOT = 3  # MAV_AUTOPILOT_ARDUPILOTMEGA
-    PX4 = 12
+    ARDUPILOT = mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA
+    PX4 = mavlink2.MAV_AUTOPILOT_PX4
+
+    @classmethod
+    def of(cls, value: int) -> Autopilot:
+        """The flavour a HEARTBEAT names; ArduPilot's conventions for anything else."""
+        return cls(value) if value in cls._value2member_map_ else cls.ARDUPILOT
 
 
 @dataclass(frozen=True, slots=True)

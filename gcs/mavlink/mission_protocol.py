@@ -17,7 +17,9 @@ from __future__ import annotations
 import asyncio
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.errors import (
     MissionMismatchError,
@@ -28,13 +30,11 @@ from gcs.mavlink.errors import (
     WaitTimeoutError,
     mission_error,
 )
+from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Mission, MissionItem
 from gcs.mavlink.subscription import Subscription
 
-if TYPE_CHECKING:
-    from gcs.mavlink.link import VehicleLink
-
-MISSION_TYPE_MISSION = 0
+MISSION_TYPE_MISSION = mavlink2.MAV_MISSION_TYPE_MISSION
 REQUESTS = ("MISSION_REQUEST", "MISSION_REQUEST_INT")  # real ArduPilot asks with 40
 
 

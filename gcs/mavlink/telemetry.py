@@ -1,21 +1,22 @@
-"""Asking a vehicle for the telemetry the ground station follows.
+"""Asking a vehicle for the telemetry the ground station follows, and asking again.
 
 A real ArduPilot streams nothing but HEARTBEAT until asked. SET_MESSAGE_INTERVAL
 (MAVLink 2 era) is tried first, one message at a time; a vehicle that does not
-acknowledge it gets the older REQUEST_DATA_STREAM for everything instead.
+acknowledge it gets the older REQUEST_DATA_STREAM for everything instead. A vehicle
+forgets what it was asked when it reboots, so the streams are asked for again after a
+reboot and after the link comes back; after a gap in the heartbeats, a position stream
+that does not resume means the vehicle rebooted without the link noticing.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import contextlib
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs.mavlink.commands import Cmd, CommandPolicy, send_command
-from gcs.mavlink.errors import CommandError
-
-if TYPE_CHECKING:
-    from gcs.mavlink.link import VehicleLink
+from gcs.mavlink.commands import CommandPolicy, send_command
+from gcs.mavlink.errors import CommandError, GcsError, WaitTimeoutError
+from gcs.mavlink.link import LinkEvent, VehicleLink
 
 INTERVAL_POLICY = CommandPolicy(timeout_s=0.5, retries=2)
 FALLBACK_STREAMS = (
@@ -24,10 +25,45 @@ FALLBACK_STREAMS = (
     mavlink2.MAV_DATA_STREAM_EXTRA2,  # VFR_HUD
 )
 FALLBACK_RATE_HZ = 4
+GAP_CHECK_PERIODS = 4  # heartbeat periods to wait for the position stream after a gap
 
 
 def message_id(name: str) -> int:
-    return getattr(mavlink2, f"MAVLINK_MSG_ID_{name}")
+    return int(getattr(mavlink2, f"MAVLINK_MSG_ID_{name}"))
+
+
+class TelemetryStreams:
+    """The streams one link needs, kept asked for while the link lives."""
+
+    def __init__(self, link: VehicleLink, rates_hz: dict[str, float]) -> None:
+        self.link = link
+        self.rates_hz = dict(rates_hz)
+        link.on_event(self._on_event)
+
+    async def start(self) -> bool:
+        """Ask for every stream; True if SET_MESSAGE_INTERVAL was accepted."""
+        return await request_telemetry(self.link, self.rates_hz)
+
+    def _on_event(self, event: LinkEvent) -> None:
+        if event in (LinkEvent.REGAINED, LinkEvent.REBOOTED):
+            self.link.spawn(self._ask_again())
+        elif event == LinkEvent.GAP:
+            self.link.spawn(self._check_after_gap())
+
+    async def _ask_again(self) -> None:
+        with contextlib.suppress(GcsError):
+            await self.start()
+
+    async def _check_after_gap(self) -> None:
+        period = self.link.heartbeat_period_s or 1.0
+        try:
+            await self.link.wait_for(
+                "GLOBAL_POSITION_INT", timeout=max(GAP_CHECK_PERIODS * period, 0.2)
+            )
+        except WaitTimeoutError:
+            self.link.declare_rebooted()
+        except GcsError:
+            pass
 
 
 async def request_telemetry(link: VehicleLink, rates_hz: dict[str, float]) -> bool:
@@ -44,7 +80,11 @@ async def request_telemetry(link: VehicleLink, rates_hz: dict[str, float]) -> bo
 async def set_message_interval(link: VehicleLink, name: str, rate_hz: float) -> None:
     interval_us = int(1e6 / rate_hz) if rate_hz > 0 else -1
     await send_command(
-        link, Cmd.SET_MESSAGE_INTERVAL, message_id(name), interval_us, policy=INTERVAL_POLICY
+        link,
+        mavlink2.MAV_CMD_SET_MESSAGE_INTERVAL,
+        message_id(name),
+        interval_us,
+        policy=INTERVAL_POLICY,
     )
 
 

@@ -1,10 +1,18 @@
-"""Byte transports for the connection strings pymavlink's mavutil understands.
+"""Byte transports under a MAVLink connection: UDP, TCP, and an in-memory pair for tests.
 
-`udpout:host:port` sends to a vehicle listening there (it answers our source port),
-`udpin:host:port` listens for vehicles (several may share the port, each answered at
-the address it last spoke from) and `tcp:host:port` connects to a vehicle's TCP
-server, reconnecting if the vehicle drops the connection (e.g. on reboot). All run on
-the caller's asyncio loop: no threads, no blocking sockets.
+A transport moves raw bytes; it knows nothing of MAVLink. The connection above it is
+handed one (`MavConnection(transport)`), as httpx's client is handed a transport, so the
+link, command and mission-protocol code runs unchanged over sockets or in memory.
+
+Sockets bind where the connection string says and talk only to whom it names:
+- `udpout:HOST:PORT` binds loopback when HOST is loopback (every interface otherwise,
+  so the vehicle's answers can arrive) and accepts datagrams only from HOST:PORT;
+  anything else is dropped and counted in `ignored`;
+- `udpin:HOST:PORT` listens on HOST only; several vehicles may send to it, and the
+  connection above decides which sender speaks for which system id;
+- `tcp:HOST:PORT` connects to a vehicle's server and reconnects while it is away (a
+  reboot drops the connection).
+Everything runs on the caller's asyncio loop: no threads, no blocking sockets.
 """
 
 from __future__ import annotations
@@ -13,43 +21,37 @@ import asyncio
 import contextlib
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Literal
 
+from gcs.mavlink.endpoint import Endpoint
 from gcs.mavlink.errors import LinkError
 
 Peer = tuple[str, int] | None
-"""Where bytes came from (UDP address); None for a TCP stream."""
+"""Where bytes came from (UDP address); None for a stream (TCP, memory)."""
 OnBytes = Callable[[bytes, Peer], None]
 
 TCP_RECONNECT_S = 0.5
 
 
-@dataclass(frozen=True)
-class Endpoint:
-    kind: Literal["udpout", "udpin", "tcp"]
-    host: str
-    port: int
-
-    @classmethod
-    def parse(cls, url: str) -> Endpoint:
-        """`udpout:127.0.0.1:14550` etc.; `udp:` is mavutil's alias of `udpin:`."""
-        kind, _, rest = url.partition(":")
-        host, _, port = rest.rpartition(":")
-        kind = {"udp": "udpin"}.get(kind, kind)
-        if kind not in ("udpout", "udpin", "tcp") or not host or not port.isdigit():
-            raise LinkError(
-                f"bad connection string {url!r}: expected udpout:HOST:PORT, "
-                "udpin:HOST:PORT or tcp:HOST:PORT"
-            )
-        return cls(kind, host, int(port))  # type: ignore[arg-type]
+def _nowhere(data: bytes, peer: Peer) -> None:
+    """The receiver of a transport nobody listens to yet."""
 
 
 class ByteTransport(ABC):
-    """Sends and receives raw MAVLink bytes; subclasses own the socket."""
+    """Sends bytes to the vehicle side and hands what arrives to one receiver."""
+
+    def __init__(self) -> None:
+        self._receiver: OnBytes = _nowhere
+        self.ignored = 0  # datagrams from an address this transport does not talk to
+
+    def set_receiver(self, receiver: OnBytes) -> None:
+        self._receiver = receiver
+
+    def deliver(self, data: bytes, peer: Peer) -> None:
+        self._receiver(data, peer)
 
     @abstractmethod
-    def send(self, data: bytes, peer: Peer = None) -> None: ...
+    def send(self, data: bytes, peer: Peer = None) -> None:
+        """Send to `peer` (a UDP address), or to the one peer this transport talks to."""
 
     def peers(self) -> list[Peer]:
         """Every address worth sending a broadcast (a GCS heartbeat) to."""
@@ -59,96 +61,153 @@ class ByteTransport(ABC):
     def close(self) -> None: ...
 
 
+class MemoryTransport(ByteTransport):
+    """One end of an in-memory pair: what one end sends, the other receives, on the next
+    loop iteration (as from a socket, so no handler runs inside its sender)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.other: MemoryTransport | None = None
+        self.closed = False
+        self.sent = 0
+
+    @classmethod
+    def pair(cls) -> tuple[MemoryTransport, MemoryTransport]:
+        a, b = cls(), cls()
+        a.other, b.other = b, a
+        return a, b
+
+    def send(self, data: bytes, peer: Peer = None) -> None:
+        other = self.other
+        if self.closed or other is None or other.closed:
+            return
+        self.sent += 1
+        asyncio.get_running_loop().call_soon(other._arrive, bytes(data))
+
+    def _arrive(self, data: bytes) -> None:
+        if not self.closed:
+            self.deliver(data, None)
+
+    def close(self) -> None:
+        self.closed = True
+
+
 class _Datagrams(asyncio.DatagramProtocol):
-    def __init__(self, on_bytes: OnBytes) -> None:
-        self.on_bytes = on_bytes
+    def __init__(self, on_datagram: Callable[[bytes, tuple[str, int]], None]) -> None:
+        self.on_datagram = on_datagram
 
     def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
-        self.on_bytes(data, (addr[0], addr[1]))
+        self.on_datagram(data, (addr[0], addr[1]))
 
     def error_received(self, exc: Exception) -> None:  # ICMP port unreachable etc.
         pass
 
 
 class UdpTransport(ByteTransport):
-    def __init__(self, transport: asyncio.DatagramTransport, remote: Peer) -> None:
-        self._transport = transport
+    """A UDP socket; with a `remote`, it talks to that address only (udpout)."""
+
+    def __init__(self, remote: Peer) -> None:
+        super().__init__()
         self._remote = remote
+        self._transport: asyncio.DatagramTransport | None = None
         self._seen: dict[tuple[str, int], None] = {}
 
-    def note_peer(self, peer: Peer) -> None:
-        if peer is not None:
-            self._seen[peer] = None
+    @classmethod
+    async def open(cls, endpoint: Endpoint) -> UdpTransport:
+        loop = asyncio.get_running_loop()
+        address = (endpoint.host, endpoint.port)
+        if endpoint.kind == "udpout":
+            udp = cls(address)
+            local = (_loopback_of if endpoint.is_loopback else _wildcard_of)(endpoint.host), 0
+        else:
+            udp, local = cls(None), address
+        try:
+            transport, _ = await loop.create_datagram_endpoint(
+                lambda: _Datagrams(udp._datagram), local_addr=local
+            )
+        except OSError as exc:
+            raise LinkError(f"cannot open {endpoint}: {exc.strerror or exc}") from exc
+        udp._transport = transport
+        return udp
+
+    def _datagram(self, data: bytes, peer: tuple[str, int]) -> None:
+        if self._remote is not None and peer[:2] != self._remote:
+            self.ignored += 1
+            return
+        self._seen[peer] = None
+        self.deliver(data, peer)
 
     def send(self, data: bytes, peer: Peer = None) -> None:
+        if self._transport is None:
+            return
         target = peer or self._remote
-        if target is None:
-            for seen in self._seen:
-                self._transport.sendto(data, seen)
-        else:
+        if target is not None:
             self._transport.sendto(data, target)
+            return
+        for seen in self._seen:
+            self._transport.sendto(data, seen)
 
     def peers(self) -> list[Peer]:
         return [self._remote] if self._remote else list(self._seen)
 
+    def forget(self, peer: Peer) -> None:
+        """Stop broadcasting to a listener's former peer (it proved to be somebody else)."""
+        if peer is not None:
+            self._seen.pop(peer, None)
+
     def close(self) -> None:
-        self._transport.close()
+        if self._transport is not None:
+            self._transport.close()
+            self._transport = None
 
 
-async def _open_udp(endpoint: Endpoint, on_bytes: OnBytes) -> UdpTransport:
-    loop = asyncio.get_running_loop()
-    holder: list[UdpTransport] = []
+def _loopback_of(host: str) -> str:
+    return "::1" if ":" in host else "127.0.0.1"
 
-    def received(data: bytes, peer: Peer) -> None:
-        holder[0].note_peer(peer)
-        on_bytes(data, peer)
 
-    address = (endpoint.host, endpoint.port)
-    try:
-        if endpoint.kind == "udpout":
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda: _Datagrams(received), local_addr=("0.0.0.0", 0)
-            )
-            holder.append(UdpTransport(transport, address))
-        else:
-            transport, _ = await loop.create_datagram_endpoint(
-                lambda: _Datagrams(received), local_addr=address
-            )
-            holder.append(UdpTransport(transport, None))
-    except OSError as exc:
-        where = f"{endpoint.kind}:{endpoint.host}:{endpoint.port}"
-        raise LinkError(f"cannot open {where}: {exc}") from exc
-    return holder[0]
+def _wildcard_of(host: str) -> str:
+    return "::" if ":" in host else "0.0.0.0"
 
 
 class _Stream(asyncio.Protocol):
-    def __init__(self, on_bytes: OnBytes, lost: Callable[[], None]) -> None:
-        self.on_bytes = on_bytes
-        self.lost = lost
+    def __init__(self, owner: TcpTransport) -> None:
+        self.owner = owner
 
     def data_received(self, data: bytes) -> None:
-        self.on_bytes(data, None)
+        self.owner.deliver(data, None)
 
     def connection_lost(self, exc: Exception | None) -> None:
-        self.lost()
+        self.owner._lost()
 
 
 class TcpTransport(ByteTransport):
     """A TCP client that reconnects in the background while the vehicle is away."""
 
-    def __init__(self, endpoint: Endpoint, on_bytes: OnBytes) -> None:
+    def __init__(self, endpoint: Endpoint) -> None:
+        super().__init__()
         self._endpoint = endpoint
-        self._on_bytes = on_bytes
         self._transport: asyncio.Transport | None = None
         self._closed = False
         self._reconnecting: asyncio.Task[None] | None = None
 
-    async def connect(self) -> None:
+    @classmethod
+    async def open(cls, endpoint: Endpoint) -> TcpTransport:
+        tcp = cls(endpoint)
+        try:
+            await tcp._connect()
+        except OSError as exc:
+            raise LinkError(f"cannot connect to {endpoint}: {exc.strerror or exc}") from exc
+        return tcp
+
+    async def _connect(self) -> None:
         loop = asyncio.get_running_loop()
         transport, _ = await loop.create_connection(
-            lambda: _Stream(self._on_bytes, self._lost), self._endpoint.host, self._endpoint.port
+            lambda: _Stream(self), self._endpoint.host, self._endpoint.port
         )
-        self._transport = transport  # type: ignore[assignment]
+        if self._closed:
+            transport.close()
+            return
+        self._transport = transport
 
     def _lost(self) -> None:
         self._transport = None
@@ -159,7 +218,7 @@ class TcpTransport(ByteTransport):
         while not self._closed and self._transport is None:
             await asyncio.sleep(TCP_RECONNECT_S)
             with contextlib.suppress(OSError):
-                await self.connect()
+                await self._connect()
 
     def send(self, data: bytes, peer: Peer = None) -> None:
         if self._transport is not None:
@@ -171,16 +230,12 @@ class TcpTransport(ByteTransport):
             self._reconnecting.cancel()
         if self._transport is not None:
             self._transport.close()
+            self._transport = None
 
 
-async def open_transport(url: str, on_bytes: OnBytes) -> ByteTransport:
-    """The transport a connection string names, already open."""
-    endpoint = Endpoint.parse(url)
-    if endpoint.kind != "tcp":
-        return await _open_udp(endpoint, on_bytes)
-    tcp = TcpTransport(endpoint, on_bytes)
-    try:
-        await tcp.connect()
-    except OSError as exc:
-        raise LinkError(f"cannot connect to {url}: {exc.strerror or exc}") from exc
-    return tcp
+async def open_transport(endpoint: Endpoint) -> ByteTransport:
+    """The socket transport an endpoint names, already open."""
+    resolved = await endpoint.resolved()
+    if resolved.kind == "tcp":
+        return await TcpTransport.open(resolved)
+    return await UdpTransport.open(resolved)

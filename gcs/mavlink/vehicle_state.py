@@ -8,33 +8,36 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
+from enum import IntEnum
 from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.modes import mode_name
 
-MAV_STATE_BOOT = 1
-MAV_MODE_FLAG_SAFETY_ARMED = 128
+MAV_STATE_BOOT = mavlink2.MAV_STATE_BOOT
+MAV_MODE_FLAG_SAFETY_ARMED = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
 
 
-class LandedState:
+class LandedState(IntEnum):
     """MAV_LANDED_STATE of EXTENDED_SYS_STATE."""
 
-    UNDEFINED = 0
-    ON_GROUND = 1
-    IN_AIR = 2
-    TAKEOFF = 3
-    LANDING = 4
+    UNDEFINED = mavlink2.MAV_LANDED_STATE_UNDEFINED
+    ON_GROUND = mavlink2.MAV_LANDED_STATE_ON_GROUND
+    IN_AIR = mavlink2.MAV_LANDED_STATE_IN_AIR
+    TAKEOFF = mavlink2.MAV_LANDED_STATE_TAKEOFF
+    LANDING = mavlink2.MAV_LANDED_STATE_LANDING
 
 
-class MissionState:
+class MissionState(IntEnum):
     """MISSION_CURRENT.mission_state."""
 
-    UNKNOWN = 0
-    NO_MISSION = 1
-    NOT_STARTED = 2
-    ACTIVE = 3
-    PAUSED = 4
-    COMPLETE = 5
+    UNKNOWN = mavlink2.MISSION_STATE_UNKNOWN
+    NO_MISSION = mavlink2.MISSION_STATE_NO_MISSION
+    NOT_STARTED = mavlink2.MISSION_STATE_NOT_STARTED
+    ACTIVE = mavlink2.MISSION_STATE_ACTIVE
+    PAUSED = mavlink2.MISSION_STATE_PAUSED
+    COMPLETE = mavlink2.MISSION_STATE_COMPLETE
 
 
 @dataclass

@@ -268,9 +268,10 @@ def fly_ideally(mission: Mission) -> list[Visit]:
         if item.command not in _STOPS:
             continue
         distance = float(np.hypot(*(metres[seq] - here)))
-        if distance > 0 and speed is None:
-            raise ValueError(f"item {seq} moves before any DO_CHANGE_SPEED sets a speed")
-        t += distance / speed if distance > 0 else 0.0
+        if distance > 0:
+            if speed is None:
+                raise ValueError(f"item {seq} moves before any DO_CHANGE_SPEED sets a speed")
+            t += distance / speed
         hold = item.params[0] if item.command != Command.NAV_LAND else 0.0
         visits.append(Visit(seq, t, t + hold, item.lat, item.lon))
         here, t = metres[seq], t + hold

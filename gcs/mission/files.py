@@ -34,8 +34,8 @@ GROUND_STATION = "mvo-gcs"
 VEHICLE_TYPE_QUADROTOR = 2  # MAV_TYPE, what QGC writes as vehicleType
 DEFAULT_HOVER_SPEED = 5.0  # m/s, QGC's multirotor default when a mission sets no speed
 WAYPOINTS_HEADER = "QGC WPL 110"
-WAYPOINTS_FIELDS = ("INDEX", "CURRENT", "FRAME", "COMMAND", "P1", "P2", "P3", "P4")
-WAYPOINTS_FIELDS += ("LAT", "LON", "ALT", "AUTOCONTINUE")
+WAYPOINTS_FIELDS: tuple[str, ...] = ("INDEX", "CURRENT", "FRAME", "COMMAND", "P1", "P2", "P3")
+WAYPOINTS_FIELDS += ("P4", "LAT", "LON", "ALT", "AUTOCONTINUE")
 # QGroundControlQmlGlobal::AltMode: 1 relative to home, 2 AMSL, 4 terrain frame.
 _ALTITUDE_MODE = {0: 2, 3: 1, 5: 2, 6: 1, 10: 4, 11: 4}
 

@@ -79,3 +79,23 @@ def local_metres(
         np.asarray(lat, dtype=float), np.asarray(lon, dtype=float), alt0, lat0, lon0, alt0
     )
     return np.column_stack([np.ravel(east), np.ravel(north)])
+
+
+def distance_m(lat1: float, lon1: float, lat2: float, lon2: float, alt_m: float = 0.0) -> float:
+    """Horizontal distance in metres between two points a few kilometres apart at most,
+    on the tangent plane at the first one (pymap3d, WGS84)."""
+    east, north, _ = pymap3d.geodetic2enu(lat2, lon2, alt_m, lat1, lon1, alt_m)
+    return float(np.hypot(east, north))
+
+
+@dataclass(frozen=True, slots=True)
+class TangentPlane:
+    """East-north metres around a reference point: one frame for comparing positions."""
+
+    lat0: float
+    lon0: float
+    alt0: float = 0.0
+
+    def east_north(self, lat: float, lon: float) -> tuple[float, float]:
+        east, north, _ = pymap3d.geodetic2enu(lat, lon, self.alt0, self.lat0, self.lon0, self.alt0)
+        return float(east), float(north)

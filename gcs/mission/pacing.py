@@ -75,8 +75,12 @@ def paced_flight(
     missions: dict[str, Mission] = {}
     for autopilot in set(autopilots.values()):
         built = build_missions(
-            slow_plan, slow_scenario, autopilot,
-            altitude_m=altitude_m, finish=finish, acceptance_radius_m=turn_radius_m,
+            slow_plan,
+            slow_scenario,
+            autopilot,
+            altitude_m=altitude_m,
+            finish=finish,
+            acceptance_radius_m=turn_radius_m,
         )
         missions |= {uav: m for uav, m in built.items() if autopilots[uav] == autopilot}
     return PacedFlight(factor, slow_plan, slow_scenario, missions)

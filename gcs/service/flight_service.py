@@ -127,8 +127,14 @@ class FlightService:
         await self._retire(flight_id)
         fleet = Fleet(links, missions, settings=self.fleet_settings)
         active = ActiveFlight(
-            flight_id, fleet, paced.scenario, paced.plan, missions, dict(row.bindings),
-            dict(row.options), paced.factor,
+            flight_id,
+            fleet,
+            paced.scenario,
+            paced.plan,
+            missions,
+            dict(row.bindings),
+            dict(row.options),
+            paced.factor,
         )
         self.active[flight_id] = active
         self._spawn(active, self._record(active))
@@ -140,8 +146,12 @@ class FlightService:
                 self.metrics.upload_retries.inc(outcome.value.resends)
             self.flights.record_upload(
                 UploadRow(
-                    flight_id=flight_id, uav_id=uav, vehicle_id=row.bindings[uav],
-                    ok=outcome.ok, items=len(missions[uav]), detail=outcome.detail,
+                    flight_id=flight_id,
+                    uav_id=uav,
+                    vehicle_id=row.bindings[uav],
+                    ok=outcome.ok,
+                    items=len(missions[uav]),
+                    detail=outcome.detail,
                 )
             )
         ok = all(o.ok for o in outcomes.values())
@@ -187,7 +197,11 @@ class FlightService:
         active = self._flying(flight_id)
         try:
             outcome = await replan_flight(
-                active.fleet, active.scenario, active.plan, new_object, list(active.objects),
+                active.fleet,
+                active.scenario,
+                active.plan,
+                new_object,
+                list(active.objects),
                 altitude_m=active.options["altitude_m"],
                 finish=active.options["finish"],
                 turn_radius_m=active.options["turn_radius_m"],
@@ -326,4 +340,3 @@ def _log_failure(active: ActiveFlight, task: asyncio.Task[Any]) -> None:
 
 def event_json(event: FleetEvent) -> dict[str, Any]:
     return {"type": "event", "kind": type(event).__name__, **dataclasses.asdict(event)}
-

@@ -45,7 +45,12 @@ async def replan_flight(
     now = fleet.plan_time()
     positions = _positions(fleet, frame)
     result = await asyncio.to_thread(
-        replan_live, scenario, plan, new_object, now=now, positions=positions,
+        replan_live,
+        scenario,
+        plan,
+        new_object,
+        now=now,
+        positions=positions,
         known_objects=known,
     )
     speeds = {u.id: u.speed for u in scenario.uavs}
@@ -54,8 +59,13 @@ async def replan_flight(
         relative = np.asarray(trajectory, dtype=float)
         relative[:, 0] -= relative[0, 0]  # the new mission's t = 0 is `now`
         missions[uav] = build_mission(
-            relative, speeds[uav], frame, fleet.autopilot(uav),
-            altitude_m=altitude_m, finish=finish, acceptance_radius_m=turn_radius_m,
+            relative,
+            speeds[uav],
+            frame,
+            fleet.autopilot(uav),
+            altitude_m=altitude_m,
+            finish=finish,
+            acceptance_radius_m=turn_radius_m,
         )
     uploads = await fleet.replace_missions(missions, starts_at=result.now) if missions else {}
     return ReplanOutcome(result, uploads, _spliced(plan, result, uploads))
@@ -81,6 +91,12 @@ def _spliced(plan: Plan, result: LiveReplan, uploads: dict[str, VehicleOutcome[N
             continue
         new = result.changed[u.id]
         before = [p for p in u.trajectory if p[0] < new[0][0]]
-        uavs.append(u.model_copy(update={"trajectory": before + new, "replanned": [
-            *u.replanned, "non-UAV object reported in flight"]}))
+        uavs.append(
+            u.model_copy(
+                update={
+                    "trajectory": before + new,
+                    "replanned": [*u.replanned, "non-UAV object reported in flight"],
+                }
+            )
+        )
     return plan.model_copy(update={"uavs": uavs})

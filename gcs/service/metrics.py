@@ -24,11 +24,15 @@ class ServiceMetrics:
             "mvo_gcs_upload_retries", "mission-protocol messages re-sent", registry=self.registry
         )
         self.link_up = Gauge(
-            "mvo_gcs_vehicle_link_up", "1 while a vehicle is heard", ["vehicle"],
+            "mvo_gcs_vehicle_link_up",
+            "1 while a vehicle is heard",
+            ["vehicle"],
             registry=self.registry,
         )
         self.replans = Counter(
-            "mvo_gcs_live_replans", "live replanning requests, by outcome", ["outcome"],
+            "mvo_gcs_live_replans",
+            "live replanning requests, by outcome",
+            ["outcome"],
             registry=self.registry,
         )
 

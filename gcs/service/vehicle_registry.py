@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+from gcs.mavlink import client
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.vehicle_state import VehicleState
@@ -92,7 +93,7 @@ class VehicleRegistry:
         attempt = 0
         while True:
             try:
-                entry.link = await VehicleLink.connect(
+                entry.link = await client.connect(
                     entry.connection, sysid=entry.sysid, settings=self._settings
                 )
             except (GcsError, OSError) as exc:

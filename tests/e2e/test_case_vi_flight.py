@@ -87,8 +87,11 @@ def test_case_vi_is_planned_uploaded_flown_and_recorded(
 
             stored = client.get(f"/flights/{fid}/events").json()
             stored_kinds = [e["kind"] for e in stored]
-            streamed = [m["kind"] for m in messages if m["type"] == "event" and
-                        m["kind"] not in ("Progress", "FlightState")]
+            streamed = [
+                m["kind"]
+                for m in messages
+                if m["type"] == "event" and m["kind"] not in ("Progress", "FlightState")
+            ]
             for kind in set(streamed):
                 assert stored_kinds.count(kind) >= streamed.count(kind), kind
             assert client.get(f"/flights/{fid}").json()["state"] == "landed"

@@ -46,16 +46,18 @@ def test_an_object_on_one_path_replans_only_that_uav(tmp_path: Path) -> None:
                 sid = client.post("/scenarios", json=scenario.model_dump(mode="json")).json()["id"]
                 plan = client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30}).json()
                 ids = [
-                    client.post("/vehicles", json={"connection": sim.connection_string(s)})
-                    .json()["id"]
+                    client.post("/vehicles", json={"connection": sim.connection_string(s)}).json()[
+                        "id"
+                    ]
                     for s in sim.sysids
                 ]
                 bindings = {u.id: v for u, v in zip(scenario.uavs, ids, strict=True)}
                 fid = client.post(
                     "/flights", json={"plan_id": plan["id"], "bindings": bindings}
                 ).json()["id"]
-                _wait(lambda: client.post(f"/flights/{fid}/upload").status_code == 200, 20,
-                      "upload")
+                _wait(
+                    lambda: client.post(f"/flights/{fid}/upload").status_code == 200, 20, "upload"
+                )
                 before = {s: list(sim.mission(s)) for s in sim.sysids}
                 assert client.post(f"/flights/{fid}/start").json()["flight"]["state"] == "flying"
 
@@ -76,8 +78,14 @@ def test_an_object_on_one_path_replans_only_that_uav(tmp_path: Path) -> None:
                 assert after[1] == before[1] and after[2] == before[2]
                 assert after[3] != before[3]
 
-                _wait(lambda: client.get(f"/flights/{fid}").json()["state"] in
-                      ("landed", "ended", "aborted"), 120, "landing")
+                _wait(
+                    lambda: (
+                        client.get(f"/flights/{fid}").json()["state"]
+                        in ("landed", "ended", "aborted")
+                    ),
+                    120,
+                    "landing",
+                )
                 assert client.get(f"/flights/{fid}").json()["state"] == "landed"
                 kinds = [e["kind"] for e in client.get(f"/flights/{fid}/events").json()]
                 assert "ObjectReported" in kinds

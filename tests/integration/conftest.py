@@ -7,6 +7,7 @@ from collections.abc import AsyncIterator, Callable, Iterator
 
 import pytest
 
+from gcs.mavlink import client
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
 from sitl_mock import Faults, Simulator, VehicleConfig
@@ -57,7 +58,7 @@ async def links() -> AsyncIterator[Callable[..., object]]:
     async def connect(
         sim: Simulator, sysid: int, settings: LinkSettings = FAST_LINK, **kwargs: object
     ) -> VehicleLink:
-        link = await VehicleLink.connect(sim.connection_string(sysid), settings=settings, **kwargs)
+        link = await client.connect(sim.connection_string(sysid), settings=settings, **kwargs)
         opened.append(link)
         return link
 

@@ -6,10 +6,10 @@ import asyncio
 from dataclasses import dataclass
 
 from gcs.fleet.fleet import Fleet, FleetSettings, FlightReport
-from gcs.fleet.route_tracker import metres_between
-from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink import client
+from gcs.mavlink.link import LinkSettings
 from gcs.mavlink.mission_item import Autopilot
-from gcs.mission.geodesy import GridFrame
+from gcs.mission.geodesy import GridFrame, distance_m
 from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, paced_flight
 from planner.plan import Plan
 from planner.scenario import Scenario
@@ -55,9 +55,7 @@ async def fly_plan(
     ).missions
     links = await asyncio.gather(
         *(
-            VehicleLink.connect(
-                sim.connection_string(k), settings=LinkSettings(connect_timeout_s=5)
-            )
+            client.connect(sim.connection_string(k), settings=LinkSettings(connect_timeout_s=5))
             for k in range(1, len(scenario.uavs) + 1)
         )
     )
@@ -83,5 +81,5 @@ def _goal_misses(sim: Simulator, scenario: Scenario) -> dict[str, float]:
     for k, uav in enumerate(scenario.uavs, start=1):
         final = sim.final_position(k)
         lat, lon = frame.to_geodetic(*uav.goal)
-        misses[uav.id] = metres_between(final.lat, final.lon, float(lat), float(lon))
+        misses[uav.id] = distance_m(final.lat, final.lon, float(lat), float(lon))
     return misses

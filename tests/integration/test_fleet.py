@@ -14,8 +14,8 @@ import pytest
 
 from gcs.fleet.events import Aborted, ItemReached, StartCancelled
 from gcs.fleet.fleet import Fallback, Fleet, FleetSettings
+from gcs.mavlink import client
 from gcs.mavlink.actions import ReadinessPolicy
-from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.build import build_missions
 from planner.cases import load_case
@@ -66,7 +66,7 @@ async def test_a_planned_flight_keeps_its_separation(simulator, name: str) -> No
 async def _fleet(sim, scenario: Scenario, the_plan: Plan, settings: FleetSettings) -> Fleet:
     missions = build_missions(the_plan, scenario, Autopilot.ARDUPILOT, altitude_m=10.0)
     links = await asyncio.gather(
-        *(VehicleLink.connect(sim.connection_string(k)) for k in range(1, len(scenario.uavs) + 1))
+        *(client.connect(sim.connection_string(k)) for k in range(1, len(scenario.uavs) + 1))
     )
     return Fleet(
         {u.id: link for u, link in zip(scenario.uavs, links, strict=True)},

@@ -6,9 +6,10 @@ import asyncio
 
 import pytest
 
+from gcs.mavlink import client
 from gcs.mavlink.connection import MavConnection
 from gcs.mavlink.errors import ConnectTimeoutError, WaitTimeoutError
-from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink.link import LinkSettings
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.mission_protocol import MissionClient
 
@@ -45,7 +46,7 @@ async def test_connect_gives_up_when_no_autopilot_answers(simulator) -> None:
     sim = simulator([vehicle(1)])
     settings = LinkSettings(connect_timeout_s=0.3)
     with pytest.raises(ConnectTimeoutError, match="autopilot 9"):
-        await VehicleLink.connect(sim.connection_string(1), sysid=9, settings=settings)
+        await client.connect(sim.connection_string(1), sysid=9, settings=settings)
 
 
 async def test_link_goes_down_on_silence_and_comes_back_with_its_streams(simulator, links):
@@ -75,8 +76,8 @@ async def test_several_vehicles_on_one_port_are_told_apart_by_sysid(simulator) -
     async with UdpRelay([sim.port(1), sim.port(2)]) as relay:
         connection = await MavConnection.open(f"udpout:127.0.0.1:{relay.port}")
         try:
-            first = await VehicleLink.attach(connection, sysid=1, settings=FAST_LINK)
-            second = await VehicleLink.attach(connection, sysid=2, settings=FAST_LINK)
+            first = await client.attach(connection, sysid=1, settings=FAST_LINK)
+            second = await client.attach(connection, sysid=2, settings=FAST_LINK)
             assert (first.autopilot, second.autopilot) == (Autopilot.ARDUPILOT, Autopilot.PX4)
             missions = (square_mission(first.autopilot, 3), square_mission(second.autopilot, 5))
             await asyncio.gather(

@@ -60,7 +60,7 @@ def test_images_are_slim_non_root_and_have_a_healthcheck(dockerfile: Path) -> No
 def test_the_service_image_runs_a_real_command() -> None:
     entry = json.loads(_instruction(DOCKER / "service.Dockerfile", "ENTRYPOINT")[0])
     assert entry[0] == "mvo-gcs"
-    build_parser().parse_args(entry[1:])
+    build_parser(entry[1]).parse_args(entry[1:])
 
 
 def test_the_vehicle_image_runs_a_real_command() -> None:
@@ -68,7 +68,7 @@ def test_the_vehicle_image_runs_a_real_command() -> None:
     entry = json.loads(_instruction(dockerfile, "ENTRYPOINT")[0])
     cmd = json.loads(_instruction(dockerfile, "CMD")[0])
     assert entry[:3] == ["python", "-m", "sitl_mock"]
-    build_parser().parse_args(["sitl", *entry[3:], *cmd])
+    build_parser("sitl").parse_args(["sitl", *entry[3:], *cmd])
 
 
 def test_compose_starts_the_service_and_the_vehicles_on_a_private_network() -> None:

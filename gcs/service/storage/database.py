@@ -37,16 +37,20 @@ class Database:
         jobs become `interrupted` (their processes died with the service) and flights
         in the air become `interrupted` (nobody followed them while the service was down)."""
         with self.session() as s:
-            jobs = s.execute(
-                update(JobRow)
-                .where(JobRow.state.in_(UNFINISHED_JOB_STATES))
-                .values(state="interrupted", error="the service stopped", updated_at=now())
-            ).rowcount
-            flights = s.execute(
-                update(FlightRow)
-                .where(FlightRow.state.in_(AIRBORNE_FLIGHT_STATES))
-                .values(state="interrupted")
-            ).rowcount
+            jobs = rowcount(
+                s.execute(
+                    update(JobRow)
+                    .where(JobRow.state.in_(UNFINISHED_JOB_STATES))
+                    .values(state="interrupted", error="the service stopped", updated_at=now())
+                )
+            )
+            flights = rowcount(
+                s.execute(
+                    update(FlightRow)
+                    .where(FlightRow.state.in_(AIRBORNE_FLIGHT_STATES))
+                    .values(state="interrupted")
+                )
+            )
         return {"jobs": jobs, "flights": flights}
 
     def close(self) -> None:
@@ -58,3 +62,8 @@ def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
     cursor.execute("PRAGMA foreign_keys=ON")
     cursor.execute("PRAGMA journal_mode=WAL")
     cursor.close()
+
+
+def rowcount(result: Any) -> int:
+    """How many rows a DELETE or UPDATE touched (a CursorResult's, untyped in Result)."""
+    return int(result.rowcount)

@@ -6,7 +6,7 @@ from typing import Any, TypeVar
 
 from sqlalchemy import delete, select
 
-from gcs.service.storage.database import Database
+from gcs.service.storage.database import Database, rowcount
 from gcs.service.storage.tables import (
     Base,
     EventRow,
@@ -31,7 +31,7 @@ class NotFound(LookupError):
 
 
 class _Repository:
-    row: type[Base]
+    row: Any  # the table class: a Base subclass with `id` and `created_at`
     kind: str
 
     def __init__(self, db: Database) -> None:
@@ -56,7 +56,7 @@ class _Repository:
 
     def delete(self, id_: str) -> None:
         with self.db.session() as s:
-            if s.execute(delete(self.row).where(self.row.id == id_)).rowcount == 0:
+            if rowcount(s.execute(delete(self.row).where(self.row.id == id_))) == 0:
                 raise NotFound(self.kind, id_)
 
     def update(self, id_: str, **values: Any) -> Any:

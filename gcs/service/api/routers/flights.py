@@ -197,8 +197,10 @@ def events(
     limit: int = Query(default=1000, ge=1, le=10_000),
 ) -> list[EventOut]:
     services.flights.get(flight_id)
-    return [EventOut.model_validate(e, from_attributes=True)
-            for e in services.flights.events(flight_id, after, limit)]
+    return [
+        EventOut.model_validate(e, from_attributes=True)
+        for e in services.flights.events(flight_id, after, limit)
+    ]
 
 
 @router.get("/{flight_id}/live-state", responses=ANSWERS)

@@ -89,7 +89,8 @@ def mission_out(uav_id: str, mission: Mission) -> MissionOut:
         )
         for seq, item in enumerate(mission.items)
     ]
-    return MissionOut(uav_id=uav_id, autopilot=mission.autopilot.name.lower(), items=items)
+    autopilot: AutopilotName = "px4" if mission.autopilot == Autopilot.PX4 else "ardupilot"
+    return MissionOut(uav_id=uav_id, autopilot=autopilot, items=items)
 
 
 @router.get("/plans/{plan_id}/missions", responses=ANSWERS)

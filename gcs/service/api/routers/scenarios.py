@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from fastapi import APIRouter, Query, status
 
 from gcs.service.api.deps import ServicesDep, mutating
@@ -10,7 +12,9 @@ from gcs.service.storage.tables import ScenarioRow
 from planner.scenario import Scenario
 
 router = APIRouter(prefix="/scenarios", tags=["scenarios"])
-NOT_FOUND = {404: {"model": Problem, "description": "no such scenario"}}
+NOT_FOUND: dict[int | str, dict[str, Any]] = {
+    404: {"model": Problem, "description": "no such scenario"}
+}
 
 
 def _out(row: ScenarioRow) -> ScenarioOut:
