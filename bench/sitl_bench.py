@@ -205,6 +205,7 @@ def report(
     args: argparse.Namespace, telemetry: dict, uploads: list[float], machine_lines: list[str]
 ) -> str:
     median = statistics.median(uploads)
+    pinned = bool(args.pin and shutil.which("taskset"))
     cpu_ok = telemetry["cpu_fraction"] < 1.0
     rate_share = telemetry["messages_per_s"] / telemetry["expected_per_s"]
     return "\n".join(
@@ -220,7 +221,7 @@ def report(
             "## Machine",
             "",
             *machine_lines,
-            f"- simulator pinned to core 0: {'yes' if args.pin and shutil.which('taskset') else 'no'}",
+            f"- simulator pinned to core 0: {'yes' if pinned else 'no'}",
             "",
             "## Command",
             "",

@@ -8,11 +8,13 @@ operator can go from scenario to landed fleet with a handful of HTTP requests.
 from __future__ import annotations
 
 import argparse
+import asyncio
 import json
 from pathlib import Path
 
 from gcs.cli.serve import add_arguments as add_serve_arguments
 from gcs.cli.serve import serve, settings_from
+from gcs.mavlink.endpoint import Endpoint
 from gcs.mission.geodesy import GridFrame
 from gcs.service.settings import Settings
 from gcs.service.storage import Database, VehicleRepository
@@ -63,14 +65,18 @@ def vehicles_at_starts(scenario: Scenario, speedup: float, base_port: int) -> Si
 
 def register(settings: Settings, simulator: Simulator) -> list[str]:
     """Store each vehicle once (a second demo run finds them registered already)."""
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    return asyncio.run(_register(settings, simulator))
+
+
+async def _register(settings: Settings, simulator: Simulator) -> list[str]:
+    settings.data_dir.mkdir(parents=True, exist_ok=True, mode=0o700)
     db = Database(settings.resolved_database_url)
     vehicles = VehicleRepository(db)
     lines = []
     try:
         for sysid in simulator.sysids:
-            connection = simulator.connection_string(sysid)
-            row = vehicles.by_connection(connection) or vehicles.add(
+            connection = str(Endpoint.parse(simulator.connection_string(sysid)))
+            row = await vehicles.by_connection(connection, sysid) or await vehicles.add(
                 VehicleRow(name=f"mock vehicle {sysid}", connection=connection, sysid=sysid)
             )
             lines.append(f"mvo-gcs: vehicle {row.id} = {json.dumps(connection)} (sysid {sysid})")

@@ -78,6 +78,31 @@ class Resumed(FleetEvent):
 
 
 @dataclass(frozen=True)
+class OperatorHeld(FleetEvent):
+    """The operator stopped these vehicles; only the operator's continue moves them."""
+
+    uav_ids: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class OperatorContinued(FleetEvent):
+    uav_ids: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Withdrawn(FleetEvent):
+    """The operator sent one vehicle down (land) or home (rtl): it leaves the plan."""
+
+    uav_id: str
+    mode: str
+
+
+@dataclass(frozen=True)
+class VehicleLinkRegained(FleetEvent):
+    uav_id: str
+
+
+@dataclass(frozen=True)
 class Progress(FleetEvent):
     vehicles: tuple[VehicleProgress, ...]
     min_separation_m: float | None
@@ -100,6 +125,7 @@ class FlightEnded(FleetEvent):
     completed: bool
     min_separation_m: float | None
     closest_pair: tuple[str, str] | None
+    outcome: str = "landed"  # "landed", "aborted", "timeout", "failed"
 
 
 class EventBus:

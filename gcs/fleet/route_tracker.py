@@ -5,6 +5,13 @@ speeds up with everything else) from the moment its mission was started. A vehic
 plan time is the moment of the ideal flight (`mission_build.fly_ideally`) that matches
 its position: along the leg it is flying, or inside the hold it is doing. Lag is the
 plan clock minus that plan time: positive when the vehicle is behind its schedule.
+
+A visit is passed when the vehicle says so in any of the ways real autopilots do:
+MISSION_ITEM_REACHED for it or for a later item (ArduCopter merges the reports of items
+finished in one loop, so the take-off and a waypoint before a DO item may never be
+reported), MISSION_CURRENT beyond it, or, for the landing at the end, being disarmed on
+the ground at the landing point (ArduCopter reports no NAV_LAND and resets its mission
+to item 1 when it disarms).
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ from gcs.mission.geodesy import distance_m
 
 ARRIVED_M = 2.5  # within this of a hold waypoint and nearly still: the hold has begun
 STILL_M_S = 0.5
+LANDED_NEAR_M = 5.0  # disarmed on the ground within this of the landing point: landed there
 
 
 @dataclass(frozen=True)
@@ -39,7 +47,9 @@ class VehicleProgress:
     clock_s: float  # the plan's clock for this vehicle
     plan_time_s: float  # where the vehicle is on its plan
     lag_s: float  # clock_s - plan_time_s: seconds behind schedule
-    paused: bool
+    paused: bool  # stopped, by the operator or by the schedule keeper
+    held: bool  # held by the operator: only the operator's continue moves it
+    withdrawn: bool  # sent home or down by the operator: out of the plan
     holding: bool  # waiting at a waypoint as the plan says
     landing: bool  # over its last place, coming down: out of the plan's picture
     finished: bool
@@ -67,22 +77,34 @@ class RouteTracker:
     def newly_passed(self, state: VehicleState) -> list[int]:
         """Indices of visits passed since the last call (for ItemReached events)."""
         clock = self.clock(state)
+        last_reported = max(state.reached, default=-1)
         fresh = []
         for k, visit in enumerate(self.visits):
             if k in self._passed_at:
                 continue
-            if visit.seq in state.reached or visit.seq < state.mission_seq:
+            if (
+                visit.seq <= last_reported
+                or visit.seq < state.mission_seq
+                or (visit.lands and self._landed_at(visit, state))
+            ):
                 self._passed_at[k] = clock
                 fresh.append(k)
             else:
                 break
         return fresh
 
+    def _landed_at(self, visit: Visit, state: VehicleState) -> bool:
+        if not state.down or state.position is None or self.start_boot_ms is None:
+            return False
+        away = distance_m(state.position.lat, state.position.lon, visit.lat, visit.lon)
+        return away <= LANDED_NEAR_M
+
     def passed_at(self, index: int) -> float:
         return self._passed_at[index]
 
     def finished(self, state: VehicleState) -> bool:
-        return len(self._passed_at) == len(self.visits) and not state.airborne
+        """Every visit passed, and disarmed on the ground (after a landing or an RTL)."""
+        return len(self._passed_at) == len(self.visits) and state.down
 
     def landing(self, state: VehicleState) -> bool:
         """Over the last place with only the landing left, or landed (the plan ends there)."""
@@ -149,7 +171,9 @@ class RouteTracker:
         fraction = 1.0 if leg <= 0 else min(1.0, max(0.0, 1.0 - left / leg))
         return leave + fraction * (target.arrive - leave)
 
-    def progress(self, state: VehicleState, paused: bool) -> VehicleProgress:
+    def progress(
+        self, state: VehicleState, *, paused: bool, held: bool = False, withdrawn: bool = False
+    ) -> VehicleProgress:
         done = len(self._passed_at)
         nxt = self.visits[done] if done < len(self.visits) else None
         pos = state.position
@@ -176,6 +200,8 @@ class RouteTracker:
             plan_time_s=plan_time,
             lag_s=clock - plan_time if self.start_boot_ms is not None else 0.0,
             paused=paused,
+            held=held,
+            withdrawn=withdrawn,
             holding=self.holding(state),
             landing=self.landing(state),
             finished=self.finished(state),

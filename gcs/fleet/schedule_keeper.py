@@ -7,12 +7,16 @@ within `resume_margin_s`. Kept simple: the vehicles that wait are those ahead of
 laggard and within `meet_distance_m` of it now (None: every vehicle ahead); a vehicle
 holding at a waypoint is left alone, it is waiting already (and an autopilot may
 restart the hold on resume).
+
+The keeper only ever resumes what it paused itself: a vehicle the operator holds stays
+held (it may well be the laggard the others wait for) until the operator continues it.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from gcs.fleet.holds import Holds
 from gcs.fleet.route_tracker import VehicleProgress
 from gcs.mission.geodesy import distance_m
 
@@ -32,32 +36,33 @@ class KeepingDecision:
     laggard_lag_s: float = 0.0
 
 
-def decide(
-    progress: list[VehicleProgress], paused: set[str], policy: KeepingPolicy
-) -> KeepingDecision:
-    """Which vehicles to pause and which to resume now."""
-    flying = [p for p in progress if not (p.finished or p.landing) and p.link_up]
+def decide(progress: list[VehicleProgress], holds: Holds, policy: KeepingPolicy) -> KeepingDecision:
+    """Which vehicles the keeper pauses and which of its own pauses it lifts, now."""
+    mine = holds.keeper - holds.operator
+    flying = [p for p in progress if not (p.finished or p.landing or p.withdrawn) and p.link_up]
     if not flying:
-        return KeepingDecision(resume=frozenset(paused))
+        return KeepingDecision(resume=frozenset(mine))
     laggard = max(flying, key=lambda p: p.lag_s)
     pause, resume = set(), set()
     for p in flying:
         ahead_by = laggard.lag_s - p.lag_s
         if (
-            p.uav_id not in paused
+            p.uav_id not in holds.stopped
             and ahead_by > policy.pause_margin_s
             and not p.holding
             and _near(p, laggard, policy.meet_distance_m)
         ):
             pause.add(p.uav_id)
-        elif p.uav_id in paused and ahead_by <= policy.resume_margin_s:
+        elif p.uav_id in mine and ahead_by <= policy.resume_margin_s:
             resume.add(p.uav_id)
     flying_ids = {p.uav_id for p in flying}
-    resume |= {uav for uav in paused if uav not in flying_ids}  # finished or lost: let go
+    resume |= {uav for uav in mine if uav not in flying_ids}  # finished or lost: let go
     return KeepingDecision(frozenset(pause), frozenset(resume), laggard.uav_id, laggard.lag_s)
 
 
 def _near(a: VehicleProgress, b: VehicleProgress, limit_m: float | None) -> bool:
-    if limit_m is None or None in (a.lat, a.lon, b.lat, b.lon):
+    if limit_m is None:
         return True
-    return distance_m(a.lat, a.lon, b.lat, b.lon) <= limit_m  # type: ignore[arg-type]
+    if a.lat is None or a.lon is None or b.lat is None or b.lon is None:
+        return True
+    return distance_m(a.lat, a.lon, b.lat, b.lon) <= limit_m

@@ -8,9 +8,12 @@ that the two positions describe the same moment.
 
 from __future__ import annotations
 
+import asyncio
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
+from gcs.mavlink.link import VehicleLink
 from gcs.mission.geodesy import TangentPlane
 
 
@@ -83,3 +86,34 @@ class SeparationTracker:
         if self.closest is None or distance < self.closest.distance_m:
             first, second = sorted((uav_id, other_id))
             self.closest = Closest(distance, (first, second), fix.wall)
+
+
+class SeparationWatch:
+    """Feeds every member's position reports to one tracker, until `close`."""
+
+    def __init__(self, tracker: SeparationTracker) -> None:
+        self.tracker = tracker
+        self._stops: list[Callable[[], None]] = []
+
+    def watch(self, uav_id: str, link: VehicleLink) -> None:
+        loop = asyncio.get_running_loop()
+
+        def on_position(msg: object) -> None:
+            state = link.state
+            if state.position is not None:
+                self.tracker.update(
+                    uav_id,
+                    state.position.lat,
+                    state.position.lon,
+                    state.velocity_n_e_m_s,
+                    state.airborne,
+                    loop.time(),
+                    state.time_boot_ms,
+                )
+
+        self._stops.append(link.on_message(on_position, ["GLOBAL_POSITION_INT"]))
+
+    def close(self) -> None:
+        for stop in self._stops:
+            stop()
+        self._stops.clear()

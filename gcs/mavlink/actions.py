@@ -157,3 +157,19 @@ class FlightActions:
 
     async def land(self) -> None:
         await self.set_mode("LAND")
+
+    async def hold(self) -> str:
+        """Stop where it is, in whatever it is doing; says how.
+
+        In AUTO the mission is paused (DO_PAUSE_CONTINUE), so that continuing resumes it;
+        otherwise the vehicle brakes to a hover (ArduCopter BRAKE, PX4 AUTO.LOITER). A
+        vehicle disarmed on the ground is left alone."""
+        state = self.link.state
+        if state.down:
+            return "on the ground, disarmed: nothing to hold"
+        if state.mode == "AUTO":
+            await self.pause()
+            return "mission paused"
+        mode = "GUIDED" if self.link.autopilot == Autopilot.PX4 else "BRAKE"
+        await self.set_mode(mode)
+        return f"holding in {mode if mode == 'BRAKE' else 'LOITER'}"

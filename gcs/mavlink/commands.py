@@ -86,6 +86,7 @@ async def send_command_int(
 async def _exchange(
     link: VehicleLink, command: int, encode: Any, policy: CommandPolicy
 ) -> CommandAck:
+    link.ensure_up()  # a vehicle not heard lately: fail now, do not wait out every retry
     with link.subscribe(["COMMAND_ACK", "STATUSTEXT"]) as sub:
         for attempt in range(policy.retries + 1):
             texts: list[str] = []  # what the vehicle said about this attempt

@@ -86,6 +86,11 @@ class VehicleState:
         alt = self.position.relative_alt_m if self.position else 0.0
         return self.armed and alt > 0.5
 
+    @property
+    def down(self) -> bool:
+        """Disarmed on the ground, as far as the vehicle last said (and it said lately)."""
+        return self.link_up and not self.armed and not self.airborne
+
     def recent_text(self, since: float) -> str:
         """The STATUSTEXTs heard since loop time `since`, joined (for error messages)."""
         return "; ".join(text for t, _, text in self.statustexts if t >= since)

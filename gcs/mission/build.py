@@ -23,7 +23,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -240,6 +240,11 @@ class Visit:
     leave: float  # arrive + hold
     lat: float
     lon: float
+    lands: bool = False  # NAV_LAND: the flight ends here, on the ground
+
+    def shifted(self, seconds: float) -> Visit:
+        """The same visit `seconds` later on the plan's clock."""
+        return replace(self, arrive=self.arrive + seconds, leave=self.leave + seconds)
 
 
 def fly_ideally(mission: Mission) -> list[Visit]:
@@ -252,7 +257,7 @@ def fly_ideally(mission: Mission) -> list[Visit]:
     whose timing is the autopilot's, not the plan's.
     """
     items = mission.items
-    start = _takeoff_index(items)
+    start = takeoff_index(items)
     lat = np.array([item.lat for item in items])
     lon = np.array([item.lon for item in items])
     ground = mission.home[2] if mission.home else 0.0
@@ -273,7 +278,8 @@ def fly_ideally(mission: Mission) -> list[Visit]:
                 raise ValueError(f"item {seq} moves before any DO_CHANGE_SPEED sets a speed")
             t += distance / speed
         hold = item.params[0] if item.command != Command.NAV_LAND else 0.0
-        visits.append(Visit(seq, t, t + hold, item.lat, item.lon))
+        lands = item.command == Command.NAV_LAND
+        visits.append(Visit(seq, t, t + hold, item.lat, item.lon, lands))
         here, t = metres[seq], t + hold
         if item.command == Command.NAV_LAND:
             break
@@ -287,7 +293,7 @@ def mission_schedule(mission: Mission) -> dict[int, float]:
 
 def flown_trajectory(mission: Mission, frame: GridFrame) -> Trajectory:
     """The ideal flight back in the plan's terms: `[t, x, y]` in cells from t = 0."""
-    takeoff = mission.items[_takeoff_index(mission.items)]
+    takeoff = mission.items[takeoff_index(mission.items)]
     visits = fly_ideally(mission)
     rows = [(0.0, takeoff.lat, takeoff.lon)]
     for v in visits:
@@ -299,7 +305,7 @@ def flown_trajectory(mission: Mission, frame: GridFrame) -> Trajectory:
     return Trajectory(np.column_stack([t, x, y]))
 
 
-def _takeoff_index(items: tuple[MissionItem, ...]) -> int:
+def takeoff_index(items: tuple[MissionItem, ...]) -> int:
     for seq, item in enumerate(items):
         if item.command == Command.NAV_TAKEOFF:
             return seq

@@ -29,6 +29,18 @@ class ServiceMetrics:
             ["vehicle"],
             registry=self.registry,
         )
+        self.ignored_packets = Gauge(
+            "mvo_gcs_vehicle_ignored_packets",
+            "packets dropped on a vehicle's connection: from a wrong address, or unsigned",
+            ["vehicle"],
+            registry=self.registry,
+        )
+        self.loop_lag = Histogram(
+            "mvo_gcs_event_loop_lag_seconds",
+            "how late the event loop ran a 10 ms timer (a stall delays every vehicle link)",
+            buckets=(0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.25, 1.0),
+            registry=self.registry,
+        )
         self.replans = Counter(
             "mvo_gcs_live_replans",
             "live replanning requests, by outcome",

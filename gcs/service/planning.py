@@ -1,25 +1,28 @@
-"""Plan requests: stored as jobs, run in the worker pool, answered at once when quick."""
+"""Plan requests: stored as jobs, run in the worker pool, answered at once when quick.
+
+A job moves through `JobState` only: a late progress report cannot reopen a finished
+job, and a cancelled one stays cancelled.
+"""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
 from gcs.service.metrics import ServiceMetrics
 from gcs.service.planning_pool import JobProgress, PlanCancelled, PlanningPool
+from gcs.service.states import JobState, StateConflict
 from gcs.service.storage import JobRepository, PlanRepository, ScenarioRepository
 from gcs.service.storage.tables import JobRow, PlanRow
 from planner.pipeline import PlannerSettings
 
-
-class JobNotCancellable(Exception):
-    def __init__(self, job: JobRow) -> None:
-        super().__init__(
-            f"job {job.id} is {job.state}; only queued or running jobs can be cancelled"
-        )
+log = logging.getLogger("mvo_gcs.planning")
+J = JobState
+CANCEL_WAIT_S = 10.0
 
 
 @dataclass
@@ -31,38 +34,38 @@ class PlanningService:
     pool: PlanningPool | None = None
     _tasks: dict[str, asyncio.Task[None]] = field(default_factory=dict)
     _watchers: dict[str, set[asyncio.Queue[JobRow]]] = field(default_factory=dict)
+    _reports: set[asyncio.Task[None]] = field(default_factory=set)  # progress being stored
 
     async def request(self, scenario_id: str, settings: PlannerSettings, wait_s: float) -> JobRow:
         """Start a job; return it once done or after `wait_s`, whichever comes first."""
-        scenario = self.scenarios.get(scenario_id)
-        job = self.jobs.add(JobRow(scenario_id=scenario_id, settings=_settings_json(settings)))
-        task = asyncio.create_task(self._run(job.id, scenario.body, settings))
+        scenario = await self.scenarios.get(scenario_id)
+        job = await self.jobs.add(
+            JobRow(scenario_id=scenario_id, settings=_settings_json(settings))
+        )
+        task = asyncio.ensure_future(self._run(job.id, scenario.body, settings))
         self._tasks[job.id] = task
         task.add_done_callback(lambda _: self._tasks.pop(job.id, None))
-        with contextlib.suppress(TimeoutError):
-            await asyncio.wait_for(asyncio.shield(task), timeout=wait_s)
-        return self.jobs.get(job.id)
+        await asyncio.wait({task}, timeout=wait_s)
+        row: JobRow = await self.jobs.get(job.id)
+        return row
 
     async def _run(self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings) -> None:
         assert self.pool is not None, "the planning pool starts with the service"
         started = time.perf_counter()
         try:
             body = await self.pool.submit(job_id, scenario, settings)
-        except PlanCancelled:
-            self._set(job_id, state="cancelled", error="cancelled on request")
+        except (PlanCancelled, asyncio.CancelledError):
+            await self._set(job_id, J.CANCELLED, error="cancelled on request")
             self.metrics.plans.labels("cancelled").inc()
-        except asyncio.CancelledError:
-            self._set(job_id, state="cancelled", error="cancelled on request")
-            raise
         except Exception as exc:  # a planner bug must end the job, not the service
-            self._set(job_id, state="failed", error=f"{type(exc).__name__}: {exc}")
+            await self._set(job_id, J.FAILED, error=f"{type(exc).__name__}: {exc}")
             self.metrics.plans.labels("failed").inc()
         else:
-            job = self.jobs.get(job_id)
-            row = self.plans.add(
+            job = await self.jobs.get(job_id)
+            row = await self.plans.add(
                 PlanRow(scenario_id=job.scenario_id, feasible=body["feasible"], body=body)
             )
-            self._set(job_id, state="done", percent=100.0, plan_id=row.id)
+            await self._set(job_id, J.DONE, percent=100.0, plan_id=row.id)
             self.metrics.plans.labels("feasible" if body["feasible"] else "infeasible").inc()
         finally:
             self.metrics.plan_seconds.observe(time.perf_counter() - started)
@@ -71,16 +74,32 @@ class PlanningService:
 
     def on_progress(self, p: JobProgress) -> None:
         task = self._tasks.get(p.job_id)
-        if task is not None and not task.done():  # a late report must not undo "done"
-            self._set(p.job_id, state="running", percent=p.percent, best_cost=p.best_cost)
+        if task is not None and not task.done():
+            report = self._set(p.job_id, J.RUNNING, percent=p.percent, best_cost=p.best_cost)
+            pending = asyncio.ensure_future(report)
+            self._reports.add(pending)
+            pending.add_done_callback(self._reports.discard)
 
-    def cancel(self, job_id: str) -> JobRow:
-        job = self.jobs.get(job_id)
-        if job.state not in ("queued", "running"):
-            raise JobNotCancellable(job)
+    async def cancel(self, job_id: str) -> JobRow:
+        job: JobRow = await self.jobs.get(job_id)
+        if JobState(job.state).is_final:
+            raise StateConflict(
+                f"job {job.id} is {job.state}; only queued or running jobs can be cancelled"
+            )
         if self.pool is not None:
             self.pool.cancel(job_id)
         return job
+
+    async def cancel_for_scenario(self, scenario_id: str) -> None:
+        """Cancel the scenario's unfinished jobs and wait (bounded) until they have ended,
+        so that no worker goes on planning for a scenario that is gone."""
+        jobs = await self.jobs.unfinished_for_scenario(scenario_id)
+        for job in jobs:
+            with contextlib.suppress(StateConflict):
+                await self.cancel(job.id)
+        tasks = [self._tasks[job.id] for job in jobs if job.id in self._tasks]
+        if tasks:
+            await asyncio.wait(tasks, timeout=CANCEL_WAIT_S)
 
     def watch(self, job_id: str) -> asyncio.Queue[JobRow]:
         queue: asyncio.Queue[JobRow] = asyncio.Queue(maxsize=100)
@@ -90,8 +109,11 @@ class PlanningService:
     def unwatch(self, job_id: str, queue: asyncio.Queue[JobRow]) -> None:
         self._watchers.get(job_id, set()).discard(queue)
 
-    def _set(self, job_id: str, **values: Any) -> None:
-        job = self.jobs.update(job_id, **values)
+    async def _set(self, job_id: str, state: JobState, **values: Any) -> None:
+        try:
+            job = await self.jobs.transition(job_id, state, **values)
+        except StateConflict:
+            return  # a late report (progress after the end) changes nothing
         for queue in self._watchers.get(job_id, ()):
             if not queue.full():
                 queue.put_nowait(job)
@@ -99,6 +121,8 @@ class PlanningService:
     async def shutdown(self) -> None:
         for task in list(self._tasks.values()):
             task.cancel()
+        if self._tasks:
+            await asyncio.wait(list(self._tasks.values()), timeout=5.0)
 
 
 def _settings_json(settings: PlannerSettings) -> dict[str, Any]:

@@ -3,18 +3,20 @@
 Each registered vehicle gets a task that connects, and connects again after a failure,
 so that a vehicle switched on after the service (or rebooted) is picked up without an
 operator's help. The routers only ever see `link()` (or `VehicleOffline`) and `state()`.
+Removing a vehicle, and closing the registry, finish within a bound whatever the link
+is doing.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import time
 from dataclasses import dataclass
 from typing import Any
 
 from gcs.mavlink import client
+from gcs.mavlink.connection import Signing
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.vehicle_state import VehicleState
@@ -22,6 +24,7 @@ from gcs.service.metrics import ServiceMetrics
 
 log = logging.getLogger("mvo_gcs.vehicles")
 RETRY_S = (0.5, 1.0, 2.0, 5.0)  # back-off between connection attempts
+CLOSE_TIMEOUT_S = 3.0
 
 
 class VehicleOffline(Exception):
@@ -34,6 +37,7 @@ class VehicleOffline(Exception):
 class _Entry:
     connection: str
     sysid: int | None
+    signing: Signing | None = None
     task: asyncio.Task[None] | None = None
     link: VehicleLink | None = None
     last_error: str = "not connected yet"
@@ -44,11 +48,14 @@ class VehicleRegistry:
         self._metrics = metrics
         self._settings = settings or LinkSettings()
         self._entries: dict[str, _Entry] = {}
+        self.registering = asyncio.Lock()  # one registration at a time: its duplicate check holds
 
-    def add(self, vehicle_id: str, connection: str, sysid: int | None) -> None:
-        entry = _Entry(connection, sysid)
+    def add(
+        self, vehicle_id: str, connection: str, sysid: int | None, signing: Signing | None = None
+    ) -> None:
+        entry = _Entry(connection, sysid, signing)
         self._entries[vehicle_id] = entry
-        entry.task = asyncio.create_task(self._keep_connected(vehicle_id, entry))
+        entry.task = asyncio.ensure_future(self._keep_connected(vehicle_id, entry))
 
     async def remove(self, vehicle_id: str) -> None:
         entry = self._entries.pop(vehicle_id, None)
@@ -67,35 +74,51 @@ class VehicleRegistry:
             raise VehicleOffline(vehicle_id, "no HEARTBEAT lately (link lost)")
         return entry.link
 
+    def link_or_none(self, vehicle_id: str) -> VehicleLink | None:
+        try:
+            return self.link(vehicle_id)
+        except VehicleOffline:
+            return None
+
+    def why_offline(self, vehicle_id: str) -> str:
+        try:
+            self.link(vehicle_id)
+        except VehicleOffline as exc:
+            return str(exc)
+        return "online"
+
+    def vehicle_state(self, vehicle_id: str) -> VehicleState | None:
+        entry = self._entries.get(vehicle_id)
+        return entry.link.state if entry is not None and entry.link is not None else None
+
+    def is_down(self, vehicle_id: str) -> bool:
+        """Heard lately, disarmed and on the ground."""
+        state = self.vehicle_state(vehicle_id)
+        return state is not None and state.down
+
     def state(self, vehicle_id: str) -> dict[str, Any]:
         entry = self._entries.get(vehicle_id)
         link = entry.link if entry else None
         if link is None:
             return {"online": False, "error": entry.last_error if entry else "not registered"}
-        return describe(link.state, link.autopilot.name.lower())
+        return describe(link)
 
-    async def wait_online(self, vehicle_id: str, timeout: float) -> VehicleLink:
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                return self.link(vehicle_id)
-            except VehicleOffline:
-                if time.monotonic() > deadline:
-                    raise
-                await asyncio.sleep(0.1)
+    def links(self) -> list[VehicleLink]:
+        return [e.link for e in self._entries.values() if e.link is not None]
 
     async def close(self) -> None:
-        for entry in self._entries.values():
-            await _close(entry)
+        entries = list(self._entries.values())
         self._entries.clear()
+        await asyncio.gather(*(_close(entry) for entry in entries))
 
     async def _keep_connected(self, vehicle_id: str, entry: _Entry) -> None:
         attempt = 0
         while True:
             try:
                 entry.link = await client.connect(
-                    entry.connection, sysid=entry.sysid, settings=self._settings
-                )
+                    entry.connection, sysid=entry.sysid, settings=self._settings,
+                    signing=entry.signing,
+                )  # fmt: skip
             except (GcsError, OSError) as exc:
                 entry.last_error = f"cannot connect to {entry.connection}: {exc}"
                 self._metrics.link_up.labels(vehicle_id).set(0)
@@ -103,31 +126,38 @@ class VehicleRegistry:
                 attempt += 1
                 continue
             log.info("vehicle %s connected: %r", vehicle_id, entry.link)
-            attempt = 0
-            while True:  # the link re-finds a vehicle that went quiet; just report it
-                self._metrics.link_up.labels(vehicle_id).set(int(entry.link.state.link_up))
-                await asyncio.sleep(1.0)
+            break
+        while True:  # the link re-finds a vehicle that went quiet; just report it
+            self._metrics.link_up.labels(vehicle_id).set(int(entry.link.state.link_up))
+            self._metrics.ignored_packets.labels(vehicle_id).set(entry.link.connection.dropped)
+            await asyncio.sleep(1.0)
 
 
 async def _close(entry: _Entry) -> None:
+    """Stop connecting and close the link, within CLOSE_TIMEOUT_S whatever happens."""
     if entry.task is not None:
         entry.task.cancel()
-        with contextlib.suppress(asyncio.CancelledError, Exception):
-            await entry.task
+        await asyncio.wait({entry.task}, timeout=CLOSE_TIMEOUT_S)
     if entry.link is not None:
-        await entry.link.close()
+        try:
+            async with asyncio.timeout(CLOSE_TIMEOUT_S):
+                await entry.link.close()
+        except TimeoutError:
+            log.warning("closing the link to %s took too long; left to the loop", entry.connection)
 
 
-def describe(state: VehicleState, autopilot: str) -> dict[str, Any]:
+def describe(link: VehicleLink) -> dict[str, Any]:
     """A vehicle's live state as the API shows it."""
+    state = link.state
     position = state.position
     return {
         "online": state.link_up,
         "sysid": state.sysid,
-        "autopilot": autopilot,
+        "autopilot": link.autopilot.name.lower(),
         "mode": state.mode,
         "armed": state.armed,
         "airborne": state.airborne,
+        "system_status": state.system_status,
         "lat": position.lat if position else None,
         "lon": position.lon if position else None,
         "relative_alt_m": position.relative_alt_m if position else None,
@@ -136,6 +166,7 @@ def describe(state: VehicleState, autopilot: str) -> dict[str, Any]:
         "mission_seq": state.mission_seq,
         "mission_total": state.mission_total,
         "mission_state": state.mission_state,
+        "ignored_packets": link.connection.dropped,
         "seconds_since_heard": round(max(0.0, time.monotonic() - state.last_heard), 3)
         if state.last_heard
         else None,

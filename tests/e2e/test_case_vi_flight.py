@@ -76,8 +76,8 @@ def test_case_vi_is_planned_uploaded_flown_and_recorded(
             ws_url = service.url.replace("http", "ws") + f"/flights/{fid}/live"
             with connect(ws_url, open_timeout=10) as ws:
                 started = client.post(f"/flights/{fid}/start")
-                assert started.status_code == 200, started.text
-                assert started.json()["flight"]["state"] == "flying", started.text
+                assert started.status_code == 202, started.text
+                assert started.json()["state"] == "starting", started.text
                 messages = _read_until_ended(ws)
             kinds = {m["kind"] for m in messages if m["type"] == "event"}
             assert {"ItemReached", "VehicleFinished", "FlightEnded"} <= kinds

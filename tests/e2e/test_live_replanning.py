@@ -59,7 +59,7 @@ def test_an_object_on_one_path_replans_only_that_uav(tmp_path: Path) -> None:
                     lambda: client.post(f"/flights/{fid}/upload").status_code == 200, 20, "upload"
                 )
                 before = {s: list(sim.mission(s)) for s in sim.sysids}
-                assert client.post(f"/flights/{fid}/start").json()["flight"]["state"] == "flying"
+                assert client.post(f"/flights/{fid}/start").json()["state"] == "starting"
 
                 # uav3 flies north along x = 7; put a bird a few cells ahead of it.
                 now = _wait(lambda: (c := _plan_clock(client, fid)) > 0.5 and c, 60, "flight")

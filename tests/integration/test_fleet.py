@@ -120,6 +120,7 @@ async def test_abort_brings_every_vehicle_down(simulator) -> None:
         await asyncio.sleep(0.02)
     outcomes = await fleet.abort("land", "test")
     report = await following
+    fleet.close()
     await asyncio.wait_for(listener, 2.0)
     assert all(o.ok for o in outcomes.values())
     assert not report.completed

@@ -1,11 +1,9 @@
-"""Mission results as typed errors, the retry policy and the schedule keeper's decisions."""
+"""Mission results as typed errors and the retry policy."""
 
 from __future__ import annotations
 
 import pytest
 
-from gcs.fleet.route_tracker import VehicleProgress
-from gcs.fleet.schedule_keeper import KeepingPolicy, decide
 from gcs.mavlink.errors import (
     InvalidParamError,
     MissionCancelledError,
@@ -57,44 +55,3 @@ def test_default_policy_is_the_spec_one() -> None:
     policy = TransferPolicy()
     assert (policy.step_timeout_s, policy.item_timeout_s, policy.retries) == (1.5, 0.25, 5)
     assert policy.stall_limit_s == pytest.approx(9.0)
-
-
-def _progress(uav: str, lag: float, finished: bool = False) -> VehicleProgress:
-    return VehicleProgress(
-        uav,
-        1,
-        "AUTO",
-        True,
-        True,
-        True,
-        0.0,
-        0.0,
-        10.0,
-        2,
-        1,
-        5,
-        10.0,
-        1.0,
-        3.0,
-        5.0,
-        5.0 - lag,
-        lag,
-        False,
-        False,
-        False,
-        finished,
-    )
-
-
-def test_vehicles_ahead_of_a_laggard_wait_and_resume_once_it_caught_up() -> None:
-    policy = KeepingPolicy(pause_margin_s=1.0, resume_margin_s=0.25)
-    first = decide([_progress("a", 2.0), _progress("b", 0.5), _progress("c", 1.5)], set(), policy)
-    assert first.laggard == "a" and first.pause == {"b"} and not first.resume
-    later = decide([_progress("a", 2.0), _progress("b", 1.9), _progress("c", 1.5)], {"b"}, policy)
-    assert later.resume == {"b"} and not later.pause
-
-
-def test_a_finished_vehicle_neither_waits_nor_makes_others_wait() -> None:
-    policy = KeepingPolicy()
-    decision = decide([_progress("a", 9.0, finished=True), _progress("b", 0.0)], {"b"}, policy)
-    assert decision.resume == {"b"} and not decision.pause

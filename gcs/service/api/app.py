@@ -13,15 +13,16 @@ from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Route
 
+from gcs.mavlink.endpoint import EndpointError
 from gcs.mavlink.errors import GcsError
 from gcs.service.api.auth import ensure_token
 from gcs.service.api.body_limit import BodySizeLimit
 from gcs.service.api.deps import Services
 from gcs.service.api.routers import flights, health, missions, plans, scenarios, vehicles
-from gcs.service.flight_service import BadBindings, BadObject, FlightConflict
-from gcs.service.planning import JobNotCancellable
+from gcs.service.flights.service import BadBindings, BadObject
 from gcs.service.planning_pool import PlanningPool
 from gcs.service.settings import Settings
+from gcs.service.states import StateConflict
 from gcs.service.storage import Database, NotFound
 from gcs.service.vehicle_registry import VehicleOffline
 
@@ -40,26 +41,32 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        settings.data_dir.mkdir(parents=True, exist_ok=True, mode=0o700)
         db = Database(settings.resolved_database_url)
-        recovered = db.recover()
+        recovered = await db.run(db.recover)
         if any(recovered.values()):
             log.warning("marked unfinished work from the last run as interrupted: %s", recovered)
         token, token_file = ensure_token(settings)
         services = Services.build(settings, db)
+        services.events.start()
+        services.loop_lag.start()
         pool = PlanningPool(settings.plan_workers, services.planning.on_progress)
         pool.start()
         services.planning.pool = pool
-        for vehicle in services.vehicles.list(limit=10_000):
+        for vehicle in await services.vehicles.page(limit=10_000):
             services.registry.add(vehicle.id, vehicle.connection, vehicle.sysid)
+        await services.operator.after_restart()
         app.state.token, app.state.token_file, app.state.services = token, token_file, services
         _announce(settings, token, token_file)
         try:
             yield
         finally:
-            await services.flight_service.close()
+            await services.operator.close()
+            await services.flights.close()
             await services.registry.close()
+            await services.events.close()
             await services.planning.shutdown()
+            services.loop_lag.stop()
             pool.shutdown()
             db.close()
 
@@ -73,7 +80,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     routers = (scenarios, plans, missions, vehicles, flights, health)
     for module in routers:
         app.include_router(module.router)
-        _add_error_handlers(app)
+    _add_error_handlers(app)
     return app
 
 
@@ -109,11 +116,11 @@ def _add_error_handlers(app: FastAPI) -> None:
 
     app.add_exception_handler(StarletteHTTPException, http_error)
     app.add_exception_handler(NotFound, problem(404))
-    app.add_exception_handler(JobNotCancellable, problem(409))
+    app.add_exception_handler(StateConflict, problem(409))
     app.add_exception_handler(missions.UnflyablePlan, problem(409))
     app.add_exception_handler(vehicles.AlreadyRegistered, problem(409))
     app.add_exception_handler(VehicleOffline, problem(409))
-    app.add_exception_handler(FlightConflict, problem(409))
     app.add_exception_handler(BadBindings, problem(422))
     app.add_exception_handler(BadObject, problem(422))
+    app.add_exception_handler(EndpointError, problem(422))
     app.add_exception_handler(GcsError, problem(502))  # the vehicle, not the request

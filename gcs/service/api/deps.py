@@ -1,4 +1,8 @@
-"""Dependencies the routers ask for: the service's parts and the token check."""
+"""Dependencies the routers ask for: each part of the service by itself, and the token check.
+
+`Services` is built once in the app's lifespan; a router names only the parts it uses
+(`ScenariosDep`, `FlightsDep`, `OperatorDep`, ...), as in FastAPI's full-stack template.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +14,11 @@ from starlette.requests import HTTPConnection
 
 from gcs.service.api.auth import require_token
 from gcs.service.api.schemas import Problem
-from gcs.service.flight_service import FlightService
+from gcs.service.flights.book import FlightBook
+from gcs.service.flights.event_writer import EventWriter
+from gcs.service.flights.operator import OperatorCommands
+from gcs.service.flights.service import FlightService
+from gcs.service.loop_lag import LoopLagProbe
 from gcs.service.metrics import ServiceMetrics
 from gcs.service.planning import PlanningService
 from gcs.service.settings import Settings
@@ -36,17 +44,29 @@ class Services:
     plans: PlanRepository
     jobs: JobRepository
     vehicles: VehicleRepository
-    flights: FlightRepository
+    flight_records: FlightRepository
     planning: PlanningService
     registry: VehicleRegistry
-    flight_service: FlightService
+    events: EventWriter
+    flights: FlightService
+    operator: OperatorCommands
+    loop_lag: LoopLagProbe
 
     @classmethod
     def build(cls, settings: Settings, db: Database) -> Services:
         metrics = ServiceMetrics()
         scenarios, plans, jobs = ScenarioRepository(db), PlanRepository(db), JobRepository(db)
-        vehicles, flights = VehicleRepository(db), FlightRepository(db)
+        vehicles, flight_records = VehicleRepository(db), FlightRepository(db)
         registry = VehicleRegistry(metrics)
+        events = EventWriter(flight_records)
+        flights = FlightService(
+            book=FlightBook(flight_records, events),
+            plans=plans,
+            scenarios=scenarios,
+            vehicles=vehicles,
+            registry=registry,
+            metrics=metrics,
+        )
         return cls(
             settings=settings,
             db=db,
@@ -55,25 +75,74 @@ class Services:
             plans=plans,
             jobs=jobs,
             vehicles=vehicles,
-            flights=flights,
+            flight_records=flight_records,
             planning=PlanningService(scenarios, plans, jobs, metrics),
             registry=registry,
-            flight_service=FlightService(
-                plans=plans,
-                scenarios=scenarios,
-                flights=flights,
-                vehicles=vehicles,
-                registry=registry,
-                metrics=metrics,
-            ),
+            events=events,
+            flights=flights,
+            operator=OperatorCommands(flights, registry),
+            loop_lag=LoopLagProbe(metrics.loop_lag),
         )
 
 
 def get_services(connection: HTTPConnection) -> Services:
-    return connection.app.state.services
+    services: Services = connection.app.state.services
+    return services
 
 
 ServicesDep = Annotated[Services, Depends(get_services)]
+
+
+def _settings(services: ServicesDep) -> Settings:
+    return services.settings
+
+
+def _scenarios(services: ServicesDep) -> ScenarioRepository:
+    return services.scenarios
+
+
+def _plans(services: ServicesDep) -> PlanRepository:
+    return services.plans
+
+
+def _jobs(services: ServicesDep) -> JobRepository:
+    return services.jobs
+
+
+def _vehicles(services: ServicesDep) -> VehicleRepository:
+    return services.vehicles
+
+
+def _flight_records(services: ServicesDep) -> FlightRepository:
+    return services.flight_records
+
+
+def _planning(services: ServicesDep) -> PlanningService:
+    return services.planning
+
+
+def _registry(services: ServicesDep) -> VehicleRegistry:
+    return services.registry
+
+
+def _flights(services: ServicesDep) -> FlightService:
+    return services.flights
+
+
+def _operator(services: ServicesDep) -> OperatorCommands:
+    return services.operator
+
+
+SettingsDep = Annotated[Settings, Depends(_settings)]
+ScenariosDep = Annotated[ScenarioRepository, Depends(_scenarios)]
+PlansDep = Annotated[PlanRepository, Depends(_plans)]
+JobsDep = Annotated[JobRepository, Depends(_jobs)]
+VehiclesDep = Annotated[VehicleRepository, Depends(_vehicles)]
+FlightRecordsDep = Annotated[FlightRepository, Depends(_flight_records)]
+PlanningDep = Annotated[PlanningService, Depends(_planning)]
+RegistryDep = Annotated[VehicleRegistry, Depends(_registry)]
+FlightsDep = Annotated[FlightService, Depends(_flights)]
+OperatorDep = Annotated[OperatorCommands, Depends(_operator)]
 
 _MUTATING_ANSWERS: dict[int | str, dict[str, Any]] = {
     400: {"model": Problem, "description": "the body could not be read"},

@@ -7,6 +7,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator
 
+from gcs.service.states import JobState
 from planner.optimizers import ALGORITHMS
 from planner.plan import Plan
 from planner.scenario import Scenario
@@ -68,7 +69,7 @@ class PlanOut(_Out):
 class JobOut(_Out):
     id: str
     scenario_id: str
-    state: Literal["queued", "running", "done", "failed", "cancelled", "interrupted"]
+    state: JobState
     percent: float
     best_cost: float | None
     plan_id: str | None

@@ -1,30 +1,51 @@
-"""Engine, sessions and the recovery that runs when the service starts."""
+"""Engine, sessions, the storage threads, and the recovery that runs when the service starts.
+
+Every storage call runs on the database's own threads, never on the event loop: a
+SQLite write costs milliseconds and a PostgreSQL one a network round trip, either of
+which would stall every vehicle link for as long. `Database.run` is the one door; the
+repositories' async methods all go through it.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import asyncio
+import functools
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
-from typing import Any
+from pathlib import Path
+from typing import Any, TypeVar
 
-from sqlalchemy import Engine, create_engine, event, update
+from sqlalchemy import Engine, create_engine, event, inspect, text, update
+from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
 
+from gcs.service.states import OPEN, FlightState, JobState
 from gcs.service.storage.tables import Base, FlightRow, JobRow, now
 
-UNFINISHED_JOB_STATES = ("queued", "running")
-AIRBORNE_FLIGHT_STATES = ("uploading", "starting", "flying", "paused")
+T = TypeVar("T")
+STORAGE_THREADS = 4
+SQLITE_BUSY_TIMEOUT_S = 10.0
 
 
 class Database:
     def __init__(self, url: str) -> None:
         is_sqlite = url.startswith("sqlite")
+        if is_sqlite:
+            _private_sqlite_file(url)
         self.engine: Engine = create_engine(
-            url, connect_args={"check_same_thread": False} if is_sqlite else {}
+            url,
+            connect_args={"check_same_thread": False, "timeout": SQLITE_BUSY_TIMEOUT_S}
+            if is_sqlite
+            else {},
         )
         if is_sqlite:
             event.listen(self.engine, "connect", _sqlite_pragmas)
         Base.metadata.create_all(self.engine)
+        _add_missing_columns(self.engine)
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
+        self._threads = ThreadPoolExecutor(STORAGE_THREADS, thread_name_prefix="storage")
 
     @contextmanager
     def session(self) -> Iterator[Session]:
@@ -32,29 +53,71 @@ class Database:
         with self._sessions() as session, session.begin():
             yield session
 
+    async def run(self, fn: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        """`fn(*args, **kwargs)` on a storage thread; the event loop goes on meanwhile."""
+        loop = asyncio.get_running_loop()
+        return await loop.run_in_executor(self._threads, functools.partial(fn, *args, **kwargs))
+
     def recover(self) -> dict[str, int]:
         """Mark what a previous run left unfinished, so nothing is lost silently: planning
-        jobs become `interrupted` (their processes died with the service) and flights
-        in the air become `interrupted` (nobody followed them while the service was down)."""
+        jobs become `interrupted` (their processes died with the service) and every open
+        flight becomes `interrupted` (nobody followed it while the service was down; its
+        vehicles may still be in the air, so it keeps them until they are down)."""
         with self.session() as s:
             jobs = rowcount(
                 s.execute(
                     update(JobRow)
-                    .where(JobRow.state.in_(UNFINISHED_JOB_STATES))
-                    .values(state="interrupted", error="the service stopped", updated_at=now())
+                    .where(JobRow.state.in_([JobState.QUEUED, JobState.RUNNING]))
+                    .values(
+                        state=JobState.INTERRUPTED, error="the service stopped", updated_at=now()
+                    )
                 )
             )
             flights = rowcount(
                 s.execute(
                     update(FlightRow)
-                    .where(FlightRow.state.in_(AIRBORNE_FLIGHT_STATES))
-                    .values(state="interrupted")
+                    .where(FlightRow.state.in_(sorted(OPEN - {FlightState.INTERRUPTED})))
+                    .values(state=FlightState.INTERRUPTED, note="the service restarted")
                 )
             )
         return {"jobs": jobs, "flights": flights}
 
     def close(self) -> None:
+        self._threads.shutdown(wait=True, cancel_futures=False)
         self.engine.dispose()
+
+
+def rowcount(result: Any) -> int:
+    """How many rows a DELETE or UPDATE touched (a CursorResult's, untyped in Result)."""
+    return int(result.rowcount)
+
+
+def _add_missing_columns(engine: Engine) -> None:
+    """Columns added since a data directory was made, added to its tables (nullable or
+    with a default, so the rows already there stay valid)."""
+    existing = inspect(engine)
+    with engine.begin() as connection:
+        for table in Base.metadata.sorted_tables:
+            have = {column["name"] for column in existing.get_columns(table.name)}
+            for column in table.columns:
+                if column.name in have:
+                    continue
+                kind = column.type.compile(engine.dialect)
+                default = " DEFAULT ''" if column.server_default is not None else ""
+                connection.execute(
+                    text(f'ALTER TABLE {table.name} ADD COLUMN "{column.name}" {kind}{default}')
+                )
+
+
+def _private_sqlite_file(url: str) -> None:
+    """Create the SQLite file readable by its owner only (it holds every plan and flight)."""
+    database = make_url(url).database
+    if not database or database == ":memory:":
+        return
+    path = Path(database)
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT, 0o600))
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
@@ -62,8 +125,3 @@ def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
     cursor.execute("PRAGMA foreign_keys=ON")
     cursor.execute("PRAGMA journal_mode=WAL")
     cursor.close()
-
-
-def rowcount(result: Any) -> int:
-    """How many rows a DELETE or UPDATE touched (a CursorResult's, untyped in Result)."""
-    return int(result.rowcount)

@@ -7,7 +7,7 @@ import uuid
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, DateTime, Float, ForeignKey, Integer, String, Text
+from sqlalchemy import JSON, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 
@@ -58,9 +58,10 @@ class VehicleRow(Base):
     __tablename__ = "vehicles"
     id: Mapped[str] = mapped_column(String(12), primary_key=True, default=new_id)
     name: Mapped[str] = mapped_column(String(100))
-    connection: Mapped[str] = mapped_column(String(200), unique=True)
+    connection: Mapped[str] = mapped_column(String(200))  # canonical (gcs.mavlink.endpoint)
     sysid: Mapped[int | None] = mapped_column(Integer, nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
+    __table_args__ = (UniqueConstraint("connection", "sysid"),)
 
 
 class FlightRow(Base):
@@ -70,7 +71,9 @@ class FlightRow(Base):
     bindings: Mapped[dict[str, Any]]  # uav id -> vehicle id
     options: Mapped[dict[str, Any]]  # altitude, finish, ...
     state: Mapped[str] = mapped_column(String(16), default="created")
+    note: Mapped[str] = mapped_column(Text, default="", server_default="")  # why this state
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
+    updated_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
 
 
 class UploadRow(Base):
@@ -82,6 +85,7 @@ class UploadRow(Base):
     ok: Mapped[bool]
     items: Mapped[int]
     detail: Mapped[str] = mapped_column(Text, default="")
+    mission: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)  # as sent
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
 
 

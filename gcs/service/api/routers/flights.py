@@ -1,27 +1,69 @@
-"""Flights: bind a plan's UAVs to vehicles, upload, start, pause, abort, watch live."""
+"""Flights: bind a plan's UAVs to vehicles, upload, start, hold, continue, abort, watch live.
+
+Flight states and what each request may do in which: docs/service.md ("Flights").
+"""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 from typing import Any, Literal
 
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect, status
+from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel, ConfigDict, Field
 
+from gcs.mavlink.mission_item import Mission
 from gcs.mission.build import DEFAULT_ALTITUDE_M
+from gcs.mission.files import parse_plan, plan_text, waypoints_text
 from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, TURN_RADIUS_M
-from gcs.service.api.deps import ServicesDep, get_services, mutating
+from gcs.service.api.deps import (
+    FlightRecordsDep,
+    FlightsDep,
+    OperatorDep,
+    get_services,
+    mutating,
+)
 from gcs.service.api.schemas import Problem, UtcDatetime
+from gcs.service.flights.active import VehicleAnswer
+from gcs.service.states import FlightState
+from gcs.service.storage import NotFound
 from gcs.service.storage.tables import FlightRow
 from planner.live_replan import NewObject
 
 router = APIRouter(prefix="/flights", tags=["flights"])
 ANSWERS: dict[int | str, dict[str, Any]] = {
     404: {"model": Problem, "description": "no such flight, plan or vehicle"},
-    409: {"model": Problem, "description": "not possible in the flight's state, or offline"},
+    409: {
+        "model": Problem,
+        "description": "not possible in the flight's state (the message says why), a vehicle "
+        "that belongs to another open flight, or a vehicle that is offline",
+    },
 }
-ENDED = ("landed", "ended", "aborted", "upload_failed", "start_failed", "interrupted")
+
+
+def _links(*operations: str) -> dict[str, dict[str, Any]]:
+    """OpenAPI links from an answer carrying a flight to the operations on that flight."""
+    return {
+        op: {"operationId": op, "parameters": {"flight_id": "$response.body#/id"}}
+        for op in operations
+    }
+
+
+FLIGHT_OPERATIONS = (
+    "getFlight",
+    "uploadFlight",
+    "startFlight",
+    "pauseFlight",
+    "continueFlight",
+    "abortFlight",
+    "cancelFlight",
+    "reportObject",
+    "flightEvents",
+    "flightLiveState",
+    "deleteFlight",
+)
 
 
 class FlightIn(BaseModel):
@@ -67,6 +109,16 @@ class ObjectIn(BaseModel):
     )
 
 
+class VehicleAnswerOut(BaseModel):
+    uav_id: str
+    vehicle_id: str
+    ok: bool
+    detail: str
+    seconds: float | None = Field(
+        default=None, description="from the request to the vehicle's answer"
+    )
+
+
 class ReplanOut(BaseModel):
     cell: list[int]
     window: list[float] | None
@@ -82,17 +134,12 @@ class ReplanOut(BaseModel):
 class FlightOut(BaseModel):
     id: str
     plan_id: str
-    state: str
+    state: FlightState
+    open: bool = Field(description="owns its vehicles: from upload until all are down")
+    note: str = Field(description="why the flight is in its state, when it says more")
     bindings: dict[str, str]
     options: dict[str, Any]
     created_at: UtcDatetime
-
-
-class VehicleAnswerOut(BaseModel):
-    uav_id: str
-    vehicle_id: str
-    ok: bool
-    detail: str
 
 
 class FlightAction(BaseModel):
@@ -110,76 +157,113 @@ class EventOut(BaseModel):
     created_at: UtcDatetime
 
 
-def _out(row: FlightRow) -> FlightOut:
-    return FlightOut.model_validate(row, from_attributes=True)
+def flight_out(row: FlightRow) -> FlightOut:
+    state = FlightState(row.state)
+    return FlightOut(
+        id=row.id,
+        plan_id=row.plan_id,
+        state=state,
+        open=state.is_open,
+        note=row.note or "",
+        bindings=row.bindings,
+        options=row.options,
+        created_at=row.created_at,
+    )
 
 
-def _action(services: ServicesDep, flight_id: str, answers: list[Any]) -> FlightAction:
+async def _action(
+    flights: FlightsDep, flight_id: str, answers: list[VehicleAnswer]
+) -> FlightAction:
     return FlightAction(
-        flight=_out(services.flights.get(flight_id)),
+        flight=flight_out(await flights.book.row(flight_id)),
         vehicles=[VehicleAnswerOut.model_validate(a, from_attributes=True) for a in answers],
     )
 
 
-@router.post("", status_code=status.HTTP_201_CREATED, **mutating(ANSWERS))
-def create_flight(flight: FlightIn, services: ServicesDep) -> FlightOut:
+@router.post(
+    "",
+    status_code=status.HTTP_201_CREATED,
+    operation_id="createFlight",
+    **mutating({**ANSWERS, 201: {"links": _links(*FLIGHT_OPERATIONS)}}),
+)
+async def create_flight(flight: FlightIn, flights: FlightsDep) -> FlightOut:
     """Bind every UAV of a feasible plan to a registered vehicle."""
     options = flight.model_dump(exclude={"plan_id", "bindings"})
-    return _out(services.flight_service.create(flight.plan_id, flight.bindings, options))
+    return flight_out(await flights.create(flight.plan_id, flight.bindings, options))
 
 
-@router.get("")
-def list_flights(
-    services: ServicesDep,
+@router.get("", operation_id="listFlights")
+async def list_flights(
+    records: FlightRecordsDep,
     limit: int = Query(default=100, ge=1, le=1000),
     offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[FlightOut]:
-    return [_out(row) for row in services.flights.list(limit, offset)]
+    return [flight_out(row) for row in await records.page(limit, offset)]
 
 
-@router.get("/{flight_id}", responses=ANSWERS)
-def get_flight(flight_id: str, services: ServicesDep) -> FlightOut:
-    return _out(services.flights.get(flight_id))
+@router.get("/{flight_id}", operation_id="getFlight", responses=ANSWERS)
+async def get_flight(flight_id: str, flights: FlightsDep) -> FlightOut:
+    return flight_out(await flights.book.row(flight_id))
 
 
-@router.post("/{flight_id}/upload", **mutating(ANSWERS))
-async def upload(flight_id: str, services: ServicesDep) -> FlightAction:
-    """Upload every UAV's mission at once, each verified by reading it back."""
-    answers = await services.flight_service.upload(flight_id)
-    return _action(services, flight_id, answers)
+@router.post("/{flight_id}/upload", operation_id="uploadFlight", **mutating(ANSWERS))
+async def upload(flight_id: str, flights: FlightsDep) -> FlightAction:
+    """Upload every UAV's mission at once, each verified by reading it back. From now on the
+    vehicles belong to this flight, until it has ended with all of them on the ground.
+    Refused (409) while a vehicle is armed, in the air, offline or owned by another flight."""
+    return await _action(flights, flight_id, await flights.upload(flight_id))
 
 
-@router.post("/{flight_id}/start", **mutating(ANSWERS))
-async def start(flight_id: str, services: ServicesDep) -> FlightAction:
-    """Arm, take off and hold every vehicle; when all hold, start every mission together.
-    If one vehicle fails before the start, none starts."""
-    answers = await services.flight_service.start(flight_id)
-    return _action(services, flight_id, answers)
+@router.post(
+    "/{flight_id}/start",
+    status_code=status.HTTP_202_ACCEPTED,
+    operation_id="startFlight",
+    **mutating(ANSWERS),
+)
+async def start(flight_id: str, flights: FlightsDep) -> FlightOut:
+    """Arm, take off and hold every vehicle over its start; when all hold, start every
+    mission together. Answered at once with the flight `starting` (arming can take a minute
+    on a real autopilot); the flight becomes `flying`, then `landed`. If one vehicle fails
+    before the start, none starts."""
+    return flight_out(await flights.start(flight_id))
 
 
-@router.post("/{flight_id}/pause", **mutating(ANSWERS))
-async def pause(flight_id: str, services: ServicesDep) -> FlightAction:
-    return _action(services, flight_id, await services.flight_service.pause(flight_id, True))
+@router.post("/{flight_id}/pause", operation_id="pauseFlight", **mutating(ANSWERS))
+async def pause(flight_id: str, flights: FlightsDep, operator: OperatorDep) -> FlightAction:
+    """The operator's fleet hold: every vehicle stops where it is until `/continue` (the
+    schedule keeper never lifts it). During the start it cancels the start."""
+    return await _action(flights, flight_id, await operator.hold(flight_id))
 
 
-@router.post("/{flight_id}/continue", **mutating(ANSWERS))
-async def resume(flight_id: str, services: ServicesDep) -> FlightAction:
-    return _action(services, flight_id, await services.flight_service.pause(flight_id, False))
+@router.post("/{flight_id}/continue", operation_id="continueFlight", **mutating(ANSWERS))
+async def resume(flight_id: str, flights: FlightsDep, operator: OperatorDep) -> FlightAction:
+    """Lift the operator's hold on every vehicle of a paused (or flying) flight."""
+    return await _action(flights, flight_id, await operator.resume(flight_id))
 
 
-@router.post("/{flight_id}/abort", **mutating(ANSWERS))
-async def abort(flight_id: str, request: AbortIn, services: ServicesDep) -> FlightAction:
-    """Every vehicle returns to launch, or lands where it is."""
-    answers = await services.flight_service.abort(flight_id, request.mode)
-    return _action(services, flight_id, answers)
+@router.post("/{flight_id}/abort", operation_id="abortFlight", **mutating(ANSWERS))
+async def abort(
+    flight_id: str, request: AbortIn, flights: FlightsDep, operator: OperatorDep
+) -> FlightAction:
+    """Every vehicle returns to launch, or lands where it is, at once: whatever the flight
+    is doing (uploading, arming, flying) is cancelled first. Accepted in every open state;
+    the flight is `aborting` until every vehicle is down, then `aborted`."""
+    answers = await operator.abort(flight_id, request.mode)
+    return await _action(flights, flight_id, answers)
 
 
-@router.post("/{flight_id}/objects", **mutating(ANSWERS))
-async def report_object(flight_id: str, request: ObjectIn, services: ServicesDep) -> ReplanOut:
+@router.post("/{flight_id}/cancel", operation_id="cancelFlight", **mutating(ANSWERS))
+async def cancel(flight_id: str, flights: FlightsDep) -> FlightOut:
+    """Release the vehicles of a flight that has not started (created, uploaded)."""
+    return flight_out(await flights.cancel(flight_id))
+
+
+@router.post("/{flight_id}/objects", operation_id="reportObject", **mutating(ANSWERS))
+async def report_object(flight_id: str, request: ObjectIn, flights: FlightsDep) -> ReplanOut:
     """Report a non-UAV object during the flight: only the UAVs whose remaining path it
     touches are replanned (from where they are) and get a new mission; the answer says
     who changed and whether the whole fleet is still separated."""
-    answer = await services.flight_service.report_object(
+    answer = await flights.report_object(
         flight_id,
         NewObject(
             (request.cell[0], request.cell[1]),
@@ -189,24 +273,75 @@ async def report_object(flight_id: str, request: ObjectIn, services: ServicesDep
     return ReplanOut(**answer)
 
 
-@router.get("/{flight_id}/events", responses=ANSWERS)
-def events(
+@router.get("/{flight_id}/events", operation_id="flightEvents", responses=ANSWERS)
+async def events(
     flight_id: str,
-    services: ServicesDep,
+    flights: FlightsDep,
     after: int = Query(default=0, ge=0, le=2**62, description="only events after this id"),
     limit: int = Query(default=1000, ge=1, le=10_000),
 ) -> list[EventOut]:
-    services.flights.get(flight_id)
-    return [
-        EventOut.model_validate(e, from_attributes=True)
-        for e in services.flights.events(flight_id, after, limit)
-    ]
+    await flights.book.row(flight_id)
+    rows = await flights.book.flights.events(flight_id, after, limit)
+    return [EventOut.model_validate(e, from_attributes=True) for e in rows]
 
 
-@router.get("/{flight_id}/live-state", responses=ANSWERS)
-def live_state(flight_id: str, services: ServicesDep) -> dict[str, Any]:
+@router.get("/{flight_id}/live-state", operation_id="flightLiveState", responses=ANSWERS)
+async def live_state(flight_id: str, flights: FlightsDep) -> dict[str, Any]:
     """What the live stream sends as its periodic `state` message, once."""
-    return services.flight_service.snapshot(flight_id)
+    return await flights.snapshot(flight_id)
+
+
+MissionFormat = Literal["plan", "waypoints"]
+
+
+@router.get(
+    "/{flight_id}/missions/{uav_id}.{extension}",
+    operation_id="flightMissionFile",
+    response_model=None,
+    responses={
+        **ANSWERS,
+        200: {
+            "description": "the mission as uploaded to the vehicle: a QGroundControl `.plan` "
+            "(JSON) or a `QGC WPL 110` `.waypoints` file",
+            "content": {"text/plain": {"schema": {"type": "string"}}},
+        },
+    },
+)
+async def flight_mission_file(
+    flight_id: str, uav_id: str, extension: MissionFormat, records: FlightRecordsDep
+) -> PlainTextResponse:
+    """The mission this flight last uploaded to the UAV's vehicle, exactly as sent."""
+    uploads = [u for u in await records.uploads(flight_id) if u.uav_id == uav_id and u.mission]
+    if not uploads:
+        await records.get(flight_id)
+        raise NotFound(f"upload of flight {flight_id} for UAV", uav_id)
+    mission = parse_plan_document(uploads[-1].mission)
+    if extension == "plan":
+        return _attachment(plan_text(mission), f"{uav_id}.plan", "application/json")
+    return _attachment(waypoints_text(mission), f"{uav_id}.waypoints", "text/plain")
+
+
+def parse_plan_document(document: dict[str, Any] | None) -> Mission:
+    return parse_plan(json.dumps(document), source="stored upload")
+
+
+def _attachment(text: str, name: str, media_type: str) -> PlainTextResponse:
+    return PlainTextResponse(
+        text,
+        media_type=media_type,
+        headers={"Content-Disposition": f'attachment; filename="{name}"'},
+    )
+
+
+@router.delete(
+    "/{flight_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    operation_id="deleteFlight",
+    **mutating(ANSWERS),
+)
+async def delete_flight(flight_id: str, flights: FlightsDep) -> None:
+    """Delete a flight that has ended, with its events and uploads (409 while open)."""
+    await flights.delete(flight_id)
 
 
 @router.websocket("/{flight_id}/live")
@@ -215,18 +350,18 @@ async def live(websocket: WebSocket, flight_id: str) -> None:
     lag) and every fleet event as it happens, until the flight has ended."""
     services = get_services(websocket)
     await websocket.accept()
-    flights = services.flight_service
+    flights = services.flights
     try:
-        queue = flights.listen(flight_id)
+        queue = await flights.listen(flight_id)
     except LookupError as exc:
         await websocket.close(code=4404, reason=str(exc))
         return
     period = 1.0 / services.settings.live_rate_hz
     try:
         while True:
-            snapshot = flights.snapshot(flight_id)
+            snapshot = await flights.snapshot(flight_id)
             await websocket.send_json(snapshot)
-            if snapshot["state"] in ENDED and queue.empty():
+            if FlightState(snapshot["state"]).is_final and queue.empty():
                 break
             with contextlib.suppress(TimeoutError):
                 async with asyncio.timeout(period):

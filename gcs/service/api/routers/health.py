@@ -12,18 +12,17 @@ router = APIRouter(tags=["health"])
 
 
 @router.get("/health/live")
-def live() -> dict[str, str]:
+async def live() -> dict[str, str]:
     """The process answers."""
     return {"status": "ok"}
 
 
 @router.get("/health/ready", responses={503: {"description": "not ready; says what is not"}})
-def ready(services: ServicesDep) -> JSONResponse:
+async def ready(services: ServicesDep) -> JSONResponse:
     """Storage answers and the planning pool runs."""
     problems = []
     try:
-        with services.db.session() as s:
-            s.execute(text("SELECT 1"))
+        await services.db.run(_select_one, services)
     except Exception as exc:  # any storage failure means not ready
         problems.append(f"storage: {exc}")
     if services.planning.pool is None:
@@ -32,6 +31,11 @@ def ready(services: ServicesDep) -> JSONResponse:
     return JSONResponse(body, status_code=503 if problems else 200)
 
 
+def _select_one(services: ServicesDep) -> None:
+    with services.db.session() as s:
+        s.execute(text("SELECT 1"))
+
+
 @router.get("/metrics", response_class=Response, responses={200: {"content": {"text/plain": {}}}})
-def metrics(services: ServicesDep) -> Response:
+async def metrics(services: ServicesDep) -> Response:
     return Response(services.metrics.render(), media_type="text/plain; version=0.0.4")

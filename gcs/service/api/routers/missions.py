@@ -1,4 +1,11 @@
-"""A plan's MAVLink missions: the items per UAV, and QGroundControl / ArduPilot files."""
+"""A plan's MAVLink missions: the items per UAV, and QGroundControl / ArduPilot files.
+
+They are the missions a flight of the plan would upload, paced the same way (the whole
+plan slowed so no leg is faster than `max_speed_m_s`, waypoints accepted within
+`turn_radius_m`), so that a file loaded into QGroundControl or MAVProxy flies as safely
+as the service would fly it. What a flight actually uploaded is at
+`/flights/{id}/missions/{uav}.plan`.
+"""
 
 from __future__ import annotations
 
@@ -10,9 +17,10 @@ from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel, Field
 
 from gcs.mavlink.mission_item import Autopilot, Mission
-from gcs.mission.build import DEFAULT_ALTITUDE_M, build_missions
+from gcs.mission.build import DEFAULT_ALTITUDE_M
 from gcs.mission.files import plan_text, waypoints_text
-from gcs.service.api.deps import ServicesDep
+from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, TURN_RADIUS_M, paced_flight
+from gcs.service.api.deps import PlansDep, ScenariosDep
 from gcs.service.api.schemas import Problem
 from gcs.service.storage import NotFound
 from planner.plan import Plan
@@ -47,6 +55,15 @@ class MissionOptions(BaseModel):
     autopilot: AutopilotName = "ardupilot"
     altitude_m: float = Field(default=DEFAULT_ALTITUDE_M, gt=0, le=1000, description="above home")
     finish: Literal["land", "rtl"] = "land"
+    max_speed_m_s: float = Field(
+        default=DEFAULT_MAX_SPEED_M_S,
+        gt=0,
+        le=50,
+        description="no leg faster than this: the whole plan is slowed by one factor",
+    )
+    turn_radius_m: float = Field(
+        default=TURN_RADIUS_M, ge=0, le=50, description="waypoint acceptance radius"
+    )
 
 
 Options = Annotated[MissionOptions, Query()]
@@ -56,25 +73,32 @@ class UnflyablePlan(Exception):
     """The plan exists but cannot become missions; answered 409."""
 
 
-def plan_missions(
-    services: ServicesDep, plan_id: str, options: MissionOptions
+async def plan_missions(
+    plans: PlansDep, scenarios: ScenariosDep, plan_id: str, options: MissionOptions
 ) -> dict[str, Mission]:
-    row = services.plans.get(plan_id)
-    scenario = Scenario(**services.scenarios.get(row.scenario_id).body)
+    row = await plans.get(plan_id)
+    scenario = Scenario(**(await scenarios.get(row.scenario_id)).body)
+    plan = Plan(**row.body)
+    autopilot = Autopilot[options.autopilot.upper()]
     try:
-        return build_missions(
-            Plan(**row.body),
+        paced = paced_flight(
+            plan,
             scenario,
-            Autopilot[options.autopilot.upper()],
+            dict.fromkeys((u.id for u in plan.uavs), autopilot),
             altitude_m=options.altitude_m,
             finish=options.finish,
+            max_speed_m_s=options.max_speed_m_s,
+            turn_radius_m=options.turn_radius_m,
         )
     except ValueError as exc:
         raise UnflyablePlan(str(exc)) from exc
+    return paced.missions
 
 
-def _one(services: ServicesDep, plan_id: str, uav_id: str, options: MissionOptions) -> Mission:
-    missions = plan_missions(services, plan_id, options)
+async def _one(
+    plans: PlansDep, scenarios: ScenariosDep, plan_id: str, uav_id: str, options: MissionOptions
+) -> Mission:
+    missions = await plan_missions(plans, scenarios, plan_id, options)
     if uav_id not in missions:
         raise NotFound(f"UAV in plan {plan_id}", uav_id)
     return missions[uav_id]
@@ -93,10 +117,13 @@ def mission_out(uav_id: str, mission: Mission) -> MissionOut:
     return MissionOut(uav_id=uav_id, autopilot=autopilot, items=items)
 
 
-@router.get("/plans/{plan_id}/missions", responses=ANSWERS)
-def get_missions(plan_id: str, services: ServicesDep, options: Options) -> list[MissionOut]:
+@router.get("/plans/{plan_id}/missions", operation_id="planMissions", responses=ANSWERS)
+async def get_missions(
+    plan_id: str, plans: PlansDep, scenarios: ScenariosDep, options: Options
+) -> list[MissionOut]:
     """One MISSION_ITEM_INT list per UAV (ArduPilot: item 0 is home)."""
-    return [mission_out(u, m) for u, m in plan_missions(services, plan_id, options).items()]
+    missions = await plan_missions(plans, scenarios, plan_id, options)
+    return [mission_out(u, m) for u, m in missions.items()]
 
 
 @router.get(
@@ -104,11 +131,11 @@ def get_missions(plan_id: str, services: ServicesDep, options: Options) -> list[
     response_model=None,
     responses={**ANSWERS, 200: {"description": "a QGroundControl .plan (JSON) file"}},
 )
-def download_qgc_plan(
-    plan_id: str, uav_id: str, services: ServicesDep, options: Options
+async def download_qgc_plan(
+    plan_id: str, uav_id: str, plans: PlansDep, scenarios: ScenariosDep, options: Options
 ) -> PlainTextResponse:
-    """The UAV's mission as a QGroundControl `.plan` file."""
-    text = plan_text(_one(services, plan_id, uav_id, options))
+    """The UAV's mission as a QGroundControl `.plan` file, paced as a flight would fly it."""
+    text = plan_text(await _one(plans, scenarios, plan_id, uav_id, options))
     return _attachment(text, f"{uav_id}.plan", "application/json")
 
 
@@ -123,11 +150,12 @@ def download_qgc_plan(
         },
     },
 )
-def download_waypoints(
-    plan_id: str, uav_id: str, services: ServicesDep, options: Options
+async def download_waypoints(
+    plan_id: str, uav_id: str, plans: PlansDep, scenarios: ScenariosDep, options: Options
 ) -> PlainTextResponse:
-    """The UAV's mission as a `QGC WPL 110` file (Mission Planner, MAVProxy)."""
-    text = waypoints_text(_one(services, plan_id, uav_id, options))
+    """The UAV's mission as a `QGC WPL 110` file (Mission Planner, MAVProxy), paced as a
+    flight would fly it."""
+    text = waypoints_text(await _one(plans, scenarios, plan_id, uav_id, options))
     return _attachment(text, f"{uav_id}.waypoints", "text/plain")
 
 

@@ -4,18 +4,37 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+from typing import Any
 
 from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect, status
 from fastapi.responses import JSONResponse
 
-from gcs.service.api.deps import ServicesDep, get_services, mutating
+from gcs.service.api.deps import (
+    FlightsDep,
+    JobsDep,
+    PlanningDep,
+    PlansDep,
+    ScenariosDep,
+    SettingsDep,
+    get_services,
+    mutating,
+)
 from gcs.service.api.schemas import JobOut, PlanOut, PlanRequest, Problem
+from gcs.service.states import OPEN, JobState, StateConflict
 from gcs.service.storage.tables import JobRow, PlanRow
 from planner.pipeline import PlannerSettings
 from planner.plan import Plan
 
 router = APIRouter(tags=["plans"])
-FINISHED = ("done", "failed", "cancelled", "interrupted")
+NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": Problem}}
+PLAN_LINKS = {
+    op: {"operationId": op, "parameters": {"plan_id": "$response.body#/id"}}
+    for op in ("getPlan", "deletePlan", "planMissions")
+}
+JOB_LINKS = {
+    op: {"operationId": op, "parameters": {"job_id": "$response.body#/id"}}
+    for op in ("getJob", "cancelJob")
+}
 
 
 def plan_out(row: PlanRow) -> PlanOut:
@@ -28,79 +47,114 @@ def plan_out(row: PlanRow) -> PlanOut:
     "/scenarios/{scenario_id}/plans",
     status_code=status.HTTP_201_CREATED,
     response_model=PlanOut,
+    operation_id="requestPlan",
     **mutating(
         {
-            202: {"model": JobOut, "description": "still planning: poll or watch the job"},
+            201: {"links": PLAN_LINKS},
+            202: {
+                "model": JobOut,
+                "description": "still planning: poll or watch the job",
+                "links": JOB_LINKS,
+            },
             404: {"model": Problem, "description": "no such scenario"},
         }
     ),
 )
 async def request_plan(
-    scenario_id: str, request: PlanRequest, services: ServicesDep
+    scenario_id: str,
+    request: PlanRequest,
+    settings: SettingsDep,
+    planning: PlanningDep,
+    plans: PlansDep,
 ) -> PlanOut | JSONResponse:
     """Plan a stored scenario in the worker pool. A plan ready within `wait_s` is answered
     at once (201); otherwise the answer is the job (202), whose progress can be polled at
     `/jobs/{id}` or watched on `/jobs/{id}/live`, and which can be cancelled."""
-    budget = services.settings.max_plan_evaluations
+    budget = settings.max_plan_evaluations
     if request.population * request.iterations > budget:
         detail = (
             f"population x iterations = {request.population * request.iterations} exceeds "
             f"this service's limit of {budget} evaluations per optimizer run"
         )
         return JSONResponse({"detail": detail}, status_code=422)
-    settings = PlannerSettings(
+    planner_settings = PlannerSettings(
         algorithm=request.algorithm,
         objective=request.objective,
         seed=request.seed,
         population=request.population,
         iterations=request.iterations,
     )
-    wait = services.settings.inline_plan_wait_s if request.wait_s is None else request.wait_s
-    job = await services.planning.request(scenario_id, settings, wait)
-    if job.state == "done" and job.plan_id is not None:
-        return plan_out(services.plans.get(job.plan_id))
-    code = status.HTTP_202_ACCEPTED if job.state in ("queued", "running") else 200
+    wait = settings.inline_plan_wait_s if request.wait_s is None else request.wait_s
+    job = await planning.request(scenario_id, planner_settings, wait)
+    if job.state == JobState.DONE and job.plan_id is not None:
+        return plan_out(await plans.get(job.plan_id))
+    final = JobState(job.state).is_final
     return JSONResponse(
         JobOut.model_validate(job).model_dump(mode="json"),
-        status_code=code,
+        status_code=200 if final else status.HTTP_202_ACCEPTED,
         headers={"Location": f"/jobs/{job.id}"},
     )
 
 
-@router.get("/scenarios/{scenario_id}/plans", responses={404: {"model": Problem}})
-def list_plans(scenario_id: str, services: ServicesDep) -> list[PlanOut]:
-    services.scenarios.get(scenario_id)
-    return [plan_out(row) for row in services.plans.for_scenario(scenario_id)]
+@router.get("/scenarios/{scenario_id}/plans", operation_id="listPlans", responses=NOT_FOUND)
+async def list_plans(
+    scenario_id: str,
+    scenarios: ScenariosDep,
+    plans: PlansDep,
+    limit: int = Query(default=100, ge=1, le=1000),
+) -> list[PlanOut]:
+    await scenarios.get(scenario_id)
+    return [plan_out(row) for row in await plans.for_scenario(scenario_id, limit)]
 
 
-@router.get("/plans/{plan_id}", responses={404: {"model": Problem}})
-def get_plan(plan_id: str, services: ServicesDep) -> PlanOut:
-    return plan_out(services.plans.get(plan_id))
+@router.get("/plans/{plan_id}", operation_id="getPlan", responses=NOT_FOUND)
+async def get_plan(plan_id: str, plans: PlansDep) -> PlanOut:
+    return plan_out(await plans.get(plan_id))
 
 
-@router.get("/jobs", tags=["jobs"])
-def list_jobs(
-    services: ServicesDep,
+@router.delete(
+    "/plans/{plan_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    operation_id="deletePlan",
+    **mutating({**NOT_FOUND, 409: {"model": Problem, "description": "an open flight flies it"}}),
+)
+async def delete_plan(plan_id: str, plans: PlansDep, flights: FlightsDep) -> None:
+    """Delete a plan and its ended flights; refused while an open flight flies it."""
+    await plans.get(plan_id)
+    async with flights.book.claims:
+        flying = [f for f in await flights.book.flights.for_plans([plan_id]) if f.state in OPEN]
+        if flying:
+            raise StateConflict(
+                f"plan {plan_id}: flight {flying[0].id} ({flying[0].state}) flies it; "
+                "abort or end it first"
+            )
+        await plans.delete(plan_id)
+
+
+@router.get("/jobs", tags=["jobs"], operation_id="listJobs")
+async def list_jobs(
+    jobs: JobsDep,
     limit: int = Query(default=100, ge=1, le=1000),
     offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[JobOut]:
-    return [JobOut.model_validate(row) for row in services.jobs.list(limit, offset)]
+    return [JobOut.model_validate(row) for row in await jobs.page(limit, offset)]
 
 
-@router.get("/jobs/{job_id}", tags=["jobs"], responses={404: {"model": Problem}})
-def get_job(job_id: str, services: ServicesDep) -> JobOut:
-    return JobOut.model_validate(services.jobs.get(job_id))
+@router.get("/jobs/{job_id}", tags=["jobs"], operation_id="getJob", responses=NOT_FOUND)
+async def get_job(job_id: str, jobs: JobsDep) -> JobOut:
+    return JobOut.model_validate(await jobs.get(job_id))
 
 
 @router.post(
     "/jobs/{job_id}/cancel",
     tags=["jobs"],
     status_code=status.HTTP_202_ACCEPTED,
-    **mutating({404: {"model": Problem}, 409: {"model": Problem, "description": "finished"}}),
+    operation_id="cancelJob",
+    **mutating({**NOT_FOUND, 409: {"model": Problem, "description": "finished"}}),
 )
-def cancel_job(job_id: str, services: ServicesDep) -> JobOut:
+async def cancel_job(job_id: str, planning: PlanningDep) -> JobOut:
     """Ask a queued or running job to stop; it ends `cancelled` within one iteration."""
-    return JobOut.model_validate(services.planning.cancel(job_id))
+    return JobOut.model_validate(await planning.cancel(job_id))
 
 
 @router.websocket("/jobs/{job_id}/live")
@@ -109,19 +163,20 @@ async def watch_job(websocket: WebSocket, job_id: str) -> None:
     services = get_services(websocket)
     await websocket.accept()
     try:
-        job = services.jobs.get(job_id)
+        job = await services.jobs.get(job_id)
     except LookupError as exc:
         await websocket.close(code=4404, reason=str(exc))
         return
     queue = services.planning.watch(job_id)
     try:
         await _send_job(websocket, job)
-        while job.state not in FINISHED:
+        while not JobState(job.state).is_final:
             with contextlib.suppress(TimeoutError):
-                job = await asyncio.wait_for(queue.get(), timeout=1.0)
+                async with asyncio.timeout(1.0):
+                    job = await queue.get()
                 await _send_job(websocket, job)
                 continue
-            job = services.jobs.get(job_id)  # a quiet second: read it back anyway
+            job = await services.jobs.get(job_id)  # a quiet second: read it back anyway
         await websocket.close()
     except WebSocketDisconnect:
         pass

@@ -6,14 +6,19 @@ from typing import Any
 
 from fastapi import APIRouter, Query, status
 
-from gcs.service.api.deps import ServicesDep, mutating
+from gcs.service.api.deps import FlightsDep, PlanningDep, PlansDep, ScenariosDep, mutating
 from gcs.service.api.schemas import Problem, ScenarioOut
+from gcs.service.states import OPEN, StateConflict
 from gcs.service.storage.tables import ScenarioRow
 from planner.scenario import Scenario
 
 router = APIRouter(prefix="/scenarios", tags=["scenarios"])
 NOT_FOUND: dict[int | str, dict[str, Any]] = {
     404: {"model": Problem, "description": "no such scenario"}
+}
+SCENARIO_LINKS = {
+    op: {"operationId": op, "parameters": {"scenario_id": "$response.body#/id"}}
+    for op in ("getScenario", "requestPlan", "listPlans", "deleteScenario")
 }
 
 
@@ -26,33 +31,54 @@ def _out(row: ScenarioRow) -> ScenarioOut:
 @router.post(
     "",
     status_code=status.HTTP_201_CREATED,
-    **mutating(),
+    operation_id="createScenario",
+    **mutating({201: {"links": SCENARIO_LINKS}}),
 )
-def create_scenario(scenario: Scenario, services: ServicesDep) -> ScenarioOut:
+async def create_scenario(scenario: Scenario, scenarios: ScenariosDep) -> ScenarioOut:
     """Store a scenario (validated: grid limits, cells inside the grid, reachable goals)."""
     row = ScenarioRow(name=scenario.name, body=scenario.model_dump(mode="json"))
-    return _out(services.scenarios.add(row))
+    return _out(await scenarios.add(row))
 
 
-@router.get("")
-def list_scenarios(
-    services: ServicesDep,
+@router.get("", operation_id="listScenarios")
+async def list_scenarios(
+    scenarios: ScenariosDep,
     limit: int = Query(default=100, ge=1, le=1000),
     offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[ScenarioOut]:
-    return [_out(row) for row in services.scenarios.list(limit, offset)]
+    return [_out(row) for row in await scenarios.page(limit, offset)]
 
 
-@router.get("/{scenario_id}", responses=NOT_FOUND)
-def get_scenario(scenario_id: str, services: ServicesDep) -> ScenarioOut:
-    return _out(services.scenarios.get(scenario_id))
+@router.get("/{scenario_id}", operation_id="getScenario", responses=NOT_FOUND)
+async def get_scenario(scenario_id: str, scenarios: ScenariosDep) -> ScenarioOut:
+    return _out(await scenarios.get(scenario_id))
 
 
 @router.delete(
     "/{scenario_id}",
     status_code=status.HTTP_204_NO_CONTENT,
-    **mutating(NOT_FOUND),
+    operation_id="deleteScenario",
+    **mutating(
+        {**NOT_FOUND, 409: {"model": Problem, "description": "an open flight flies its plan"}}
+    ),
 )
-def delete_scenario(scenario_id: str, services: ServicesDep) -> None:
-    """Delete a scenario with its plans and jobs."""
-    services.scenarios.delete(scenario_id)
+async def delete_scenario(
+    scenario_id: str,
+    scenarios: ScenariosDep,
+    plans: PlansDep,
+    planning: PlanningDep,
+    flights: FlightsDep,
+) -> None:
+    """Delete a scenario with its plans, jobs and ended flights. Refused while an open
+    flight flies one of its plans; planning jobs still running are cancelled first."""
+    await scenarios.get(scenario_id)
+    await planning.cancel_for_scenario(scenario_id)
+    async with flights.book.claims:  # no upload may claim one of its plans meanwhile
+        plan_ids = await plans.ids_for_scenario(scenario_id)
+        flying = [f for f in await flights.book.flights.for_plans(plan_ids) if f.state in OPEN]
+        if flying:
+            raise StateConflict(
+                f"scenario {scenario_id}: flight {flying[0].id} ({flying[0].state}) "
+                "flies one of its plans; abort or end it first"
+            )
+        await scenarios.delete(scenario_id)

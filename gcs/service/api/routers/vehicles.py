@@ -1,20 +1,27 @@
-"""Vehicles: registered by connection string, listed with their live state."""
+"""Vehicles: registered by connection string, listed with their live state, commanded one
+at a time (hold, land, return to launch, continue), with or without a flight."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from fastapi import APIRouter, Query, status
 from pydantic import BaseModel, ConfigDict, Field, field_validator
+from sqlalchemy.exc import IntegrityError
 
-from gcs.mavlink.errors import LinkError
-from gcs.mavlink.transport import Endpoint
-from gcs.service.api.deps import ServicesDep, mutating
+from gcs.mavlink.endpoint import Endpoint, EndpointError
+from gcs.service.api.deps import FlightsDep, OperatorDep, RegistryDep, VehiclesDep, mutating
+from gcs.service.api.routers.flights import VehicleAnswerOut
 from gcs.service.api.schemas import Problem, UtcDatetime
+from gcs.service.states import StateConflict
 from gcs.service.storage.tables import VehicleRow
+from gcs.service.vehicle_registry import VehicleRegistry
 
 router = APIRouter(prefix="/vehicles", tags=["vehicles"])
 NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": Problem}}
+CONFLICT: dict[int | str, dict[str, Any]] = {
+    409: {"model": Problem, "description": "offline, or not possible now (the message says)"}
+}
 
 
 class VehicleIn(BaseModel):
@@ -22,8 +29,9 @@ class VehicleIn(BaseModel):
 
     connection: str = Field(
         max_length=200,
-        description="as pymavlink names it: udpout:HOST:PORT, udpin:HOST:PORT or tcp:HOST:PORT",
-        examples=["udpout:127.0.0.1:14560"],
+        description="as pymavlink names it: udpout:HOST:PORT, udpin:HOST:PORT or tcp:HOST:PORT "
+        "(IPv6 in brackets); stored in canonical form",
+        examples=["tcp:127.0.0.1:5760"],
     )
     sysid: int | None = Field(
         default=None, ge=1, le=255, description="the autopilot's system id; default: first heard"
@@ -32,12 +40,11 @@ class VehicleIn(BaseModel):
 
     @field_validator("connection")
     @classmethod
-    def _parsable(cls, value: str) -> str:
+    def _canonical(cls, value: str) -> str:
         try:
-            Endpoint.parse(value)
-        except (LinkError, ValueError) as exc:
+            return str(Endpoint.parse(value))
+        except EndpointError as exc:
             raise ValueError(str(exc)) from None
-        return value
 
 
 class VehicleOut(BaseModel):
@@ -53,52 +60,101 @@ class AlreadyRegistered(Exception):
     pass
 
 
-def _out(row: VehicleRow, services: ServicesDep) -> VehicleOut:
+def _out(row: VehicleRow, registry: VehicleRegistry) -> VehicleOut:
     return VehicleOut(
         id=row.id,
         name=row.name,
         connection=row.connection,
         sysid=row.sysid,
         created_at=row.created_at,
-        live=services.registry.state(row.id),
+        live=registry.state(row.id),
     )
 
 
 @router.post(
     "",
     status_code=status.HTTP_201_CREATED,
+    operation_id="registerVehicle",
     **mutating({409: {"model": Problem, "description": "already registered"}}),
 )
-async def register_vehicle(vehicle: VehicleIn, services: ServicesDep) -> VehicleOut:
-    """Register a vehicle; the service connects (and reconnects) to it from now on."""
-    if services.vehicles.by_connection(vehicle.connection) is not None:
-        raise AlreadyRegistered(f"{vehicle.connection} is already registered")
-    row = services.vehicles.add(
-        VehicleRow(
-            name=vehicle.name or vehicle.connection,
-            connection=vehicle.connection,
-            sysid=vehicle.sysid,
+async def register_vehicle(
+    vehicle: VehicleIn, vehicles: VehiclesDep, registry: RegistryDep
+) -> VehicleOut:
+    """Register a vehicle; the service connects (and reconnects) to it from now on. One
+    endpoint and system id is one vehicle, however its connection string is spelled."""
+    endpoint = Endpoint.parse(vehicle.connection)
+    resolved = str(await endpoint.resolved())
+    async with registry.registering:
+        for spelling in dict.fromkeys((vehicle.connection, resolved)):
+            existing = await vehicles.by_connection(spelling, vehicle.sysid)
+            if existing is not None:
+                raise AlreadyRegistered(
+                    f"{vehicle.connection} (sysid {vehicle.sysid or 'any'}) is already "
+                    f"registered as vehicle {existing.id} ({existing.connection})"
+                )
+        row = VehicleRow(
+            name=vehicle.name or vehicle.connection, connection=resolved, sysid=vehicle.sysid
         )
-    )
-    services.registry.add(row.id, row.connection, row.sysid)
-    return _out(row, services)
+        try:
+            await vehicles.add(row)
+        except IntegrityError:
+            raise AlreadyRegistered(f"{vehicle.connection} is already registered") from None
+    registry.add(row.id, row.connection, row.sysid)
+    return _out(row, registry)
 
 
-@router.get("")
-def list_vehicles(
-    services: ServicesDep,
+@router.get("", operation_id="listVehicles")
+async def list_vehicles(
+    vehicles: VehiclesDep,
+    registry: RegistryDep,
     limit: int = Query(default=100, ge=1, le=1000),
     offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[VehicleOut]:
-    return [_out(row, services) for row in services.vehicles.list(limit, offset)]
+    return [_out(row, registry) for row in await vehicles.page(limit, offset)]
 
 
-@router.get("/{vehicle_id}", responses=NOT_FOUND)
-def get_vehicle(vehicle_id: str, services: ServicesDep) -> VehicleOut:
-    return _out(services.vehicles.get(vehicle_id), services)
+@router.get("/{vehicle_id}", operation_id="getVehicle", responses=NOT_FOUND)
+async def get_vehicle(vehicle_id: str, vehicles: VehiclesDep, registry: RegistryDep) -> VehicleOut:
+    return _out(await vehicles.get(vehicle_id), registry)
 
 
-@router.delete("/{vehicle_id}", status_code=status.HTTP_204_NO_CONTENT, **mutating(NOT_FOUND))
-async def delete_vehicle(vehicle_id: str, services: ServicesDep) -> None:
-    services.vehicles.delete(vehicle_id)
-    await services.registry.remove(vehicle_id)
+@router.delete(
+    "/{vehicle_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    operation_id="deleteVehicle",
+    **mutating({**NOT_FOUND, **CONFLICT}),
+)
+async def delete_vehicle(
+    vehicle_id: str, vehicles: VehiclesDep, registry: RegistryDep, flights: FlightsDep
+) -> None:
+    """Forget a vehicle (409 while an open flight owns it: it may be in the air)."""
+    await vehicles.get(vehicle_id)
+    async with flights.book.claims:  # no upload may claim it meanwhile
+        owner = await flights.book.open_flight_of(vehicle_id)
+        if owner is not None:
+            raise StateConflict(
+                f"vehicle {vehicle_id} belongs to flight {owner.id}, which is {owner.state}: "
+                "it cannot be removed until that flight has ended"
+            )
+        await vehicles.delete(vehicle_id)
+    await registry.remove(vehicle_id)
+
+
+VehicleCommand = Literal["hold", "land", "rtl", "continue"]
+
+
+@router.post(
+    "/{vehicle_id}/{command}",
+    operation_id="commandVehicle",
+    **mutating({**NOT_FOUND, **CONFLICT}),
+)
+async def command_vehicle(
+    vehicle_id: str, command: VehicleCommand, vehicles: VehiclesDep, operator: OperatorDep
+) -> VehicleAnswerOut:
+    """`hold` (stop where it is), `land`, `rtl` (return to launch) or `continue` (lift an
+    operator's hold) for one vehicle, now. In a flight, the fleet knows: an operator's hold
+    is never lifted by the schedule keeper, and a vehicle sent down or home leaves the plan
+    while the others fly on."""
+    await vehicles.get(vehicle_id)
+    answer = await operator.vehicle(vehicle_id, command)
+    return VehicleAnswerOut.model_validate(answer, from_attributes=True)

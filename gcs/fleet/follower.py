@@ -1,0 +1,153 @@
+"""Following a flight to its end: items reached, landings, link losses, schedule keeping.
+
+The flight ends when every vehicle has flown its mission and is disarmed on the ground
+(or, if the operator sent it home or down, is on the ground), when it is aborted, or at
+its time bound. A vehicle whose link drops is waited for: an autopilot flies its
+mission without us, and a short outage must not end a flight while vehicles are up.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from dataclasses import dataclass
+
+from gcs.fleet.crew import Crew
+from gcs.fleet.events import (
+    FlightEnded,
+    ItemReached,
+    Paused,
+    Progress,
+    Resumed,
+    VehicleFailed,
+    VehicleFinished,
+    VehicleLinkRegained,
+)
+from gcs.fleet.interventions import abort
+from gcs.fleet.member import Member
+from gcs.fleet.schedule_keeper import decide
+from gcs.mission.geodesy import distance_m
+
+
+@dataclass(frozen=True)
+class FlightReport:
+    completed: bool  # every vehicle flew its mission to the end and landed
+    outcome: str  # "landed", "aborted", "timeout", "ended" (someone withdrawn)
+    min_separation_m: float | None
+    closest_pair: tuple[str, str] | None
+    finished: tuple[str, ...]
+    failed: dict[str, str]
+    withdrawn: dict[str, str]
+
+
+class Follower:
+    def __init__(self, crew: Crew) -> None:
+        self.crew = crew
+        self.finished: set[str] = set()
+        self._link_down: set[str] = set()
+
+    async def follow(self, timeout_s: float | None = None) -> FlightReport:
+        """Watch the flight to its end; `timeout_s` is in the vehicles' seconds (default:
+        three times the longest schedule plus two minutes) and bounds the wall time too."""
+        crew = self.crew
+        limit = timeout_s or default_timeout(crew)
+        loop = asyncio.get_running_loop()
+        wall_deadline = loop.time() + limit
+        next_progress = 0.0
+        timed_out = False
+        while crew.aborted is None and not self._all_down():
+            self._note_items_and_ends()
+            self._note_links()
+            if crew.settings.keep_schedule:
+                await self._keep_schedule()
+            if loop.time() >= next_progress:
+                crew.bus.publish(Progress(crew.progress(), self.min_separation_m))
+                next_progress = loop.time() + crew.settings.progress_every_s
+            if crew.clock() > limit or loop.time() > wall_deadline:
+                timed_out = True
+                await abort(crew, crew.settings.fallback.value, f"flight exceeded {limit:.0f} s")
+                break
+            await asyncio.sleep(crew.settings.tick_s)
+        return self.report(timed_out)
+
+    @property
+    def min_separation_m(self) -> float | None:
+        closest = self.crew.separation.closest if self.crew.separation else None
+        return closest.distance_m if closest else None
+
+    def report(self, timed_out: bool = False) -> FlightReport:
+        crew = self.crew
+        completed = crew.aborted is None and len(self.finished) == len(crew.members)
+        if completed:
+            outcome = "landed"
+        elif timed_out:
+            outcome = "timeout"
+        else:
+            outcome = "aborted" if crew.aborted is not None else "ended"
+        closest = crew.separation.closest if crew.separation else None
+        pair = closest.pair if closest else None
+        crew.bus.publish(FlightEnded(completed, self.min_separation_m, pair, outcome))
+        return FlightReport(
+            completed,
+            outcome,
+            self.min_separation_m,
+            pair,
+            tuple(sorted(self.finished)),
+            dict(crew.failed),
+            dict(crew.withdrawn),
+        )
+
+    def _all_down(self) -> bool:
+        return all(
+            uav in self.finished or (uav in self.crew.withdrawn and m.link.state.down)
+            for uav, m in self.crew.members.items()
+        )
+
+    def _note_items_and_ends(self) -> None:
+        for m in self.crew.members.values():
+            state = m.link.state
+            for k in m.tracker.newly_passed(state):
+                visit = m.tracker.visits[k]
+                self.crew.bus.publish(
+                    ItemReached(m.uav_id, visit.seq, m.tracker.passed_at(k), visit.arrive)
+                )
+            if m.uav_id not in self.finished and m.tracker.finished(state):
+                self.finished.add(m.uav_id)
+                self.crew.bus.publish(VehicleFinished(m.uav_id, _distance_to_goal(m)))
+
+    def _note_links(self) -> None:
+        for m in self.crew.members.values():
+            up = m.link.state.link_up
+            if not up and m.uav_id not in self._link_down:
+                self._link_down.add(m.uav_id)
+                self.crew.failed[m.uav_id] = "link lost in flight"
+                self.crew.bus.publish(VehicleFailed(m.uav_id, "flight", "link lost"))
+            elif up and m.uav_id in self._link_down:
+                self._link_down.discard(m.uav_id)
+                self.crew.failed.pop(m.uav_id, None)
+                self.crew.bus.publish(VehicleLinkRegained(m.uav_id))
+
+    async def _keep_schedule(self) -> None:
+        crew = self.crew
+        decision = decide(list(crew.progress()), crew.holds, crew.settings.keeping)
+        if decision.pause:
+            stop = crew.holds.keeper_pauses(decision.pause)
+            lag = decision.laggard_lag_s
+            crew.bus.publish(Paused(tuple(sorted(decision.pause)), decision.laggard or "", lag))
+            await crew.each(lambda m: m.actions.pause(), "flight", stop)
+        if decision.resume:
+            go = crew.holds.keeper_resumes(decision.resume)
+            crew.bus.publish(Resumed(tuple(sorted(decision.resume))))
+            await crew.each(lambda m: m.actions.resume(), "flight", go)
+
+
+def default_timeout(crew: Crew) -> float:
+    longest = max(
+        (m.tracker.visits[-1].leave for m in crew.members.values() if m.tracker.visits),
+        default=0.0,
+    )
+    return 3 * longest + 120.0
+
+
+def _distance_to_goal(member: Member) -> float:
+    pos, goal = member.link.state.position, member.tracker.visits[-1]
+    return distance_m(pos.lat, pos.lon, goal.lat, goal.lon) if pos else float("nan")

@@ -1,0 +1,74 @@
+"""What the operator (or a failure) does to a flight: hold, continue, withdraw, abort.
+
+These are the commands that must always work. Each acts on the vehicles at once and
+answers per vehicle; none waits for the flight's other work.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Awaitable, Callable, Iterable
+
+from gcs.fleet.crew import Crew, Fallback
+from gcs.fleet.events import Aborted, OperatorContinued, OperatorHeld, Withdrawn
+from gcs.fleet.member import Member
+from gcs.fleet.outcome import VehicleOutcome
+
+
+async def hold(crew: Crew, uav_ids: Iterable[str] | None = None) -> dict[str, VehicleOutcome[str]]:
+    """The operator's hold: the vehicles stop where they are until the operator continues
+    them (the schedule keeper never does)."""
+    chosen = set(crew.members if uav_ids is None else uav_ids)
+    crew.holds.hold(chosen)
+    crew.bus.publish(OperatorHeld(tuple(sorted(chosen))))
+    return await crew.each(lambda m: m.actions.hold(), "hold", chosen)
+
+
+async def continue_(
+    crew: Crew, uav_ids: Iterable[str] | None = None
+) -> dict[str, VehicleOutcome[None]]:
+    """Lift the operator's hold; a vehicle the schedule keeper is holding waits for it."""
+    chosen = set(crew.members if uav_ids is None else uav_ids) - set(crew.withdrawn)
+    moving = crew.holds.release(chosen)
+    crew.bus.publish(OperatorContinued(tuple(sorted(chosen))))
+    outcomes = await crew.each(lambda m: m.actions.resume(), "continue", moving)
+    waiting: dict[str, VehicleOutcome[None]] = {
+        uav: VehicleOutcome(uav, True, "still paused by the schedule keeper")
+        for uav in chosen - moving
+    }
+    return {**outcomes, **waiting}
+
+
+async def withdraw(crew: Crew, uav_id: str, mode: str) -> VehicleOutcome[None]:
+    """One vehicle lands or returns home on the operator's word and leaves the plan."""
+    fallback = Fallback(mode)
+    crew.withdrawn[uav_id] = fallback.value
+    crew.holds.operator.discard(uav_id)
+    crew.holds.keeper.discard(uav_id)
+    crew.bus.publish(Withdrawn(uav_id, fallback.value))
+    outcomes = await fall_back(crew, [uav_id], fallback)
+    return outcomes[uav_id]
+
+
+async def abort(
+    crew: Crew, mode: str = "rtl", reason: str = "aborted by the operator"
+) -> dict[str, VehicleOutcome[None]]:
+    """Every vehicle to RTL or LAND at once; the flight then ends."""
+    fallback = Fallback(mode)
+    crew.aborted = reason
+    crew.bus.publish(Aborted(fallback.value, reason))
+    return await fall_back(crew, list(crew.members), fallback)
+
+
+async def fall_back(
+    crew: Crew, uav_ids: Iterable[str], fallback: Fallback
+) -> dict[str, VehicleOutcome[None]]:
+    chosen = list(uav_ids)
+    if fallback == Fallback.HOLD:
+        outcomes = await crew.each(lambda m: m.actions.hold(), "hold", chosen)
+        return {uav: VehicleOutcome(uav, o.ok, o.detail) for uav, o in outcomes.items()}
+    action: Callable[[Member], Awaitable[None]] = (
+        (lambda m: m.actions.land())
+        if fallback == Fallback.LAND
+        else (lambda m: m.actions.return_to_launch())
+    )
+    return await crew.each(action, fallback.value, chosen)

@@ -1,0 +1,52 @@
+"""What one vehicle answered to a fleet operation, and running an operation on many."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Awaitable, Callable, Iterable
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+from gcs.fleet.member import Member
+from gcs.mavlink.errors import GcsError
+
+T = TypeVar("T")
+EXPECTED_FAILURES = (GcsError, OSError, ValueError, TimeoutError)
+"""What a vehicle can do to an operation: refuse, time out, drop the link."""
+
+
+@dataclass(frozen=True)
+class VehicleOutcome(Generic[T]):
+    """One vehicle's answer to a fleet operation."""
+
+    uav_id: str
+    ok: bool
+    detail: str
+    value: T | None = None
+    error: BaseException | None = None
+
+
+async def run_each(
+    members: Iterable[Member],
+    action: Callable[[Member], Awaitable[T]],
+    on_failure: Callable[[str, str], None] | None = None,
+) -> dict[str, VehicleOutcome[T]]:
+    """`action` on every member at once; one vehicle's failure does not stop the others.
+
+    Failures a vehicle can cause become a failed outcome (and `on_failure(uav, message)`);
+    anything else (a bug, a cancellation) propagates."""
+    chosen = list(members)
+    results = await asyncio.gather(*(action(m) for m in chosen), return_exceptions=True)
+    outcomes: dict[str, VehicleOutcome[T]] = {}
+    for member, result in zip(chosen, results, strict=True):
+        if isinstance(result, EXPECTED_FAILURES):
+            if on_failure is not None:
+                on_failure(member.uav_id, str(result))
+            outcomes[member.uav_id] = VehicleOutcome(
+                member.uav_id, False, str(result), None, result
+            )
+        elif isinstance(result, BaseException):
+            raise result
+        else:
+            outcomes[member.uav_id] = VehicleOutcome(member.uav_id, True, "ok", result)
+    return outcomes

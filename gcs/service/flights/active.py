@@ -1,0 +1,59 @@
+"""What only lives while the service runs, for a flight uploaded in this run: its `Fleet`,
+the plan as flown, and the live listeners (WebSockets) its events fan out to."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from gcs.fleet.events import FleetEvent, Progress
+from gcs.fleet.fleet import Fleet
+from gcs.mavlink.mission_item import Mission
+from planner.live_replan import NewObject
+from planner.plan import Plan
+from planner.scenario import Scenario
+
+LISTENER_QUEUE = 1000
+
+
+@dataclass(frozen=True)
+class VehicleAnswer:
+    """What one vehicle did about a request, and how long after the request it answered."""
+
+    uav_id: str
+    vehicle_id: str
+    ok: bool
+    detail: str
+    seconds: float | None = None
+
+
+@dataclass
+class ActiveFlight:
+    flight_id: str
+    fleet: Fleet
+    scenario: Scenario  # as flown: speeds divided by the pace factor
+    plan: Plan  # as flown: times multiplied by the pace factor
+    missions: dict[str, Mission]
+    vehicles: dict[str, str]  # uav id -> vehicle id
+    options: dict[str, Any]
+    pace_factor: float  # the flight's clock runs this much slower than the plan's
+    objects: list[NewObject] = field(default_factory=list)  # reported during the flight
+    listeners: set[asyncio.Queue[dict[str, Any]]] = field(default_factory=set)
+    last_progress: Progress | None = None
+    pump: asyncio.Task[None] | None = None  # fleet events to storage and listeners
+
+    def uav_of(self, vehicle_id: str) -> str | None:
+        return next((uav for uav, vid in self.vehicles.items() if vid == vehicle_id), None)
+
+    def tell(self, message: dict[str, Any]) -> None:
+        """Give a message to every live listener; a slow one loses its oldest messages."""
+        for queue in list(self.listeners):
+            if queue.full():
+                queue.get_nowait()
+            queue.put_nowait(message)
+
+
+def event_json(event: FleetEvent) -> dict[str, Any]:
+    return {"type": "event", "kind": type(event).__name__, **dataclasses.asdict(event)}

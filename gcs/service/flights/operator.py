@@ -1,0 +1,276 @@
+"""The operator's commands: abort, hold and continue the fleet; hold, land, return home
+or continue one vehicle. They work in every state in which a vehicle may be armed.
+
+An abort never waits: it cancels the flight's operation and runner, commands every
+reachable vehicle, and leaves the flight `aborting` until every vehicle is disarmed on
+the ground. A hold during the start cancels the start. A flight with no live fleet (after
+a restart, or a start that failed) is commanded through the vehicles' links directly.
+Per-vehicle commands go to the flight that owns the vehicle, if any, so that the fleet
+knows (an operator's hold is never lifted by the schedule keeper; a vehicle sent down or
+home leaves the plan); a vehicle that belongs to no flight is simply commanded.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+from collections.abc import Awaitable, Callable
+from typing import Any, Literal
+
+from gcs.fleet.crew import Fallback
+from gcs.fleet.outcome import VehicleOutcome
+from gcs.mavlink.actions import FlightActions
+from gcs.mavlink.errors import GcsError
+from gcs.service.flights.active import ActiveFlight, VehicleAnswer
+from gcs.service.flights.book import FlightBook
+from gcs.service.flights.service import FlightService
+from gcs.service.states import FlightState, StateConflict
+from gcs.service.storage.tables import FlightRow
+from gcs.service.vehicle_registry import VehicleRegistry
+
+log = logging.getLogger("mvo_gcs.operator")
+F = FlightState
+VehicleAction = Literal["hold", "land", "rtl", "continue"]
+DOWN_POLL_S = 0.25
+
+
+class OperatorCommands:
+    def __init__(self, flights: FlightService, registry: VehicleRegistry) -> None:
+        self.flights = flights
+        self.book: FlightBook = flights.book
+        self.registry = registry
+        self._watchers: dict[str, asyncio.Task[None]] = {}
+
+    # --- the fleet ---------------------------------------------------------------------
+
+    async def abort(self, flight_id: str, mode: str) -> list[VehicleAnswer]:
+        """Every vehicle returns to launch ("rtl") or lands where it is ("land")."""
+        fallback = Fallback(mode)
+        asked = _now()
+        slot = self.book.slot(flight_id)
+        async with slot.intervention():
+            row = await self.book.row(flight_id)
+            state = FlightState(row.state)
+            if not state.is_open:
+                raise StateConflict(
+                    f"flight {flight_id} is {state.value}: its vehicles are all on the ground, "
+                    "so there is nothing to abort (command one with /vehicles/{id}/land)"
+                )
+            preempting = asyncio.ensure_future(slot.preempt())
+            active = self.book.active.get(flight_id)
+            if active is not None and active.fleet.crew.members:
+                outcomes = await active.fleet.abort(fallback.value)
+            else:
+                outcomes = await self._command_links(row, _fallback_action(fallback))
+            await preempting
+            if state != F.ABORTING:
+                with contextlib.suppress(StateConflict):
+                    await self.book.transition(
+                        flight_id, F.ABORTING, f"{fallback.value} by the operator"
+                    )
+            self.watch_until_down(flight_id)
+            return _answers(row, outcomes, asked)
+
+    async def hold(self, flight_id: str) -> list[VehicleAnswer]:
+        """The operator's fleet hold (also `/pause`): every vehicle stops where it is."""
+        asked = _now()
+        slot = self.book.slot(flight_id)
+        row = await self.book.row(flight_id)
+        state = FlightState(row.state)
+        if state == F.STARTING:  # the start cannot go on with vehicles held: cancel it
+            async with slot.intervention():
+                await slot.preempt()
+                outcomes = await self._command_links(row, lambda a: a.hold())
+                await self.flights.to_interrupted(
+                    flight_id, "held by the operator during the start"
+                )
+                self.watch_until_down(flight_id)
+                return _answers(row, outcomes, asked)
+        async with slot.serial():
+            state = await self.book.state(flight_id)
+            active = self.book.active.get(flight_id)
+            if state in (F.FLYING, F.PAUSED) and active is not None:
+                outcomes = await active.fleet.pause()
+                if state == F.FLYING:
+                    await self.book.transition(flight_id, F.PAUSED, "held by the operator")
+            elif state.is_open:
+                outcomes = await self._command_links(row, lambda a: a.hold())
+            else:
+                raise StateConflict(f"flight {flight_id} is {state.value}: nothing to hold")
+            return _answers(row, outcomes, asked)
+
+    async def resume(self, flight_id: str) -> list[VehicleAnswer]:
+        """Lift the operator's hold on every vehicle (also `/continue`)."""
+        asked = _now()
+        async with self.book.slot(flight_id).serial():
+            row = await self.book.row(flight_id)
+            state = FlightState(row.state)
+            active = self.book.active.get(flight_id)
+            if state not in (F.FLYING, F.PAUSED) or active is None:
+                raise StateConflict(
+                    f"flight {flight_id} is {state.value}: only a flying or paused flight "
+                    "continues (abort, or command the vehicles one by one)"
+                )
+            outcomes = await active.fleet.resume()
+            if state == F.PAUSED:
+                await self.book.transition(flight_id, F.FLYING, "continued by the operator")
+            return _answers(row, outcomes, asked)
+
+    # --- one vehicle --------------------------------------------------------------------
+
+    async def vehicle(self, vehicle_id: str, action: VehicleAction) -> VehicleAnswer:
+        """Hold, land, return home or continue one vehicle, in or out of a flight."""
+        asked = _now()
+        link = self.registry.link(vehicle_id)
+        owner = await self.book.open_flight_of(vehicle_id)
+        if owner is None:
+            outcome = await _on_link(FlightActions(link), action, vehicle_id)
+            return VehicleAnswer("", vehicle_id, outcome.ok, outcome.detail, _now() - asked)
+        uav = next(u for u, v in owner.bindings.items() if v == vehicle_id)
+        async with self.book.slot(owner.id).intervention():
+            outcome = await self._in_flight(owner, uav, vehicle_id, action)
+        self.book.events.record(
+            owner.id, "OperatorCommand", {"type": "event", "kind": "OperatorCommand",
+            "uav_id": uav, "action": action, "ok": outcome.ok, "detail": outcome.detail}, uav,
+        )  # fmt: skip
+        return VehicleAnswer(uav, vehicle_id, outcome.ok, outcome.detail, _now() - asked)
+
+    async def _in_flight(
+        self, owner: FlightRow, uav: str, vehicle_id: str, action: VehicleAction
+    ) -> VehicleOutcome[Any]:
+        state = await self.book.state(owner.id)
+        active = self.book.active.get(owner.id)
+        if state in (F.FLYING, F.PAUSED) and active is not None:
+            return await _in_fleet(active, uav, action)
+        if action == "continue":
+            raise StateConflict(
+                f"vehicle {vehicle_id} ({uav}) is in flight {owner.id}, which is {state.value}: "
+                "only a flying flight continues"
+            )
+        if state == F.STARTING:  # one vehicle taken out of the line-up: the start is off
+            await self.book.slot(owner.id).preempt()
+            await self.flights.to_interrupted(
+                owner.id, f"{uav} commanded to {action} during the start"
+            )
+            self.watch_until_down(owner.id)
+        outcome = await _on_link(FlightActions(self.registry.link(vehicle_id)), action, uav)
+        if state in (F.ABORTING, F.INTERRUPTED, F.STARTING):
+            self.watch_until_down(owner.id)
+        return outcome
+
+    # --- until every vehicle is down ---------------------------------------------------
+
+    def watch_until_down(self, flight_id: str) -> None:
+        """Close the flight (`aborting` → `aborted`, `interrupted` → `ended`) once every
+        vehicle is disarmed on the ground, as their links report it."""
+        watcher = self._watchers.get(flight_id)
+        if watcher is None or watcher.done():
+            self._watchers[flight_id] = asyncio.ensure_future(self._until_down(flight_id))
+
+    async def _until_down(self, flight_id: str) -> None:
+        bindings = await self.book.bindings(flight_id)
+        while True:
+            state = await self.book.state(flight_id)
+            if not state.is_open or state not in (F.ABORTING, F.INTERRUPTED):
+                break
+            if all(self.registry.is_down(vid) for vid in bindings.values()):
+                final = F.ABORTED if state == F.ABORTING else F.ENDED
+                with contextlib.suppress(StateConflict):
+                    await self.book.transition(flight_id, final, "every vehicle is down")
+                await self.flights.retire_when_down(flight_id)
+                break
+            await asyncio.sleep(DOWN_POLL_S)
+        self._watchers.pop(flight_id, None)
+
+    async def after_restart(self) -> None:
+        """Every flight that was open when the service stopped is `interrupted` now:
+        watch it until its vehicles are down (their links come back on their own)."""
+        for row in await self.book.flights.open_flights():
+            self.watch_until_down(row.id)
+
+    async def close(self) -> None:
+        for watcher in list(self._watchers.values()):
+            watcher.cancel()
+        if self._watchers:
+            await asyncio.wait(list(self._watchers.values()), timeout=2.0)
+
+    # --- helpers ---------------------------------------------------------------------------
+
+    async def _command_links(
+        self, row: FlightRow, action: Callable[[FlightActions], Awaitable[Any]]
+    ) -> dict[str, VehicleOutcome[Any]]:
+        """`action` on every bound vehicle that is online, straight through its link."""
+
+        async def one(uav: str, vehicle_id: str) -> VehicleOutcome[Any]:
+            link = self.registry.link_or_none(vehicle_id)
+            if link is None:
+                return VehicleOutcome(
+                    uav, False, f"unreachable: {self.registry.why_offline(vehicle_id)}"
+                )
+            try:
+                detail = await action(FlightActions(link))
+            except GcsError as exc:
+                return VehicleOutcome(uav, False, str(exc), error=exc)
+            return VehicleOutcome(uav, True, detail if isinstance(detail, str) else "ok")
+
+        pairs = sorted(row.bindings.items())
+        results = await asyncio.gather(*(one(uav, vid) for uav, vid in pairs))
+        return {uav: outcome for (uav, _), outcome in zip(pairs, results, strict=True)}
+
+
+async def _in_fleet(active: ActiveFlight, uav: str, action: VehicleAction) -> VehicleOutcome[Any]:
+    fleet = active.fleet
+    if action == "hold":
+        return (await fleet.pause({uav}))[uav]
+    if action == "continue":
+        return (await fleet.resume({uav}))[uav]
+    return await fleet.withdraw(uav, action)
+
+
+async def _on_link(actions: FlightActions, action: VehicleAction, who: str) -> VehicleOutcome[Any]:
+    try:
+        if action == "hold":
+            return VehicleOutcome(who, True, await actions.hold())
+        if action == "land":
+            await actions.land()
+        elif action == "rtl":
+            await actions.return_to_launch()
+        elif actions.link.state.mode == "AUTO":
+            await actions.resume()
+        else:
+            raise StateConflict(
+                f"vehicle {who} is in {actions.link.state.mode or 'no known mode'}, not paused "
+                "in a mission: there is nothing to continue"
+            )
+    except GcsError as exc:
+        return VehicleOutcome(who, False, str(exc), error=exc)
+    return VehicleOutcome(who, True, "ok")
+
+
+def _fallback_action(fallback: Fallback) -> Callable[[FlightActions], Awaitable[Any]]:
+    if fallback == Fallback.LAND:
+        return lambda a: a.land()
+    if fallback == Fallback.RTL:
+        return lambda a: a.return_to_launch()
+    return lambda a: a.hold()
+
+
+def _answers(
+    row: FlightRow, outcomes: dict[str, VehicleOutcome[Any]], asked: float
+) -> list[VehicleAnswer]:
+    elapsed = _now() - asked
+    return [
+        VehicleAnswer(
+            uav,
+            vid,
+            uav in outcomes and outcomes[uav].ok,
+            outcomes[uav].detail if uav in outcomes else "not commanded",
+            elapsed,
+        )
+        for uav, vid in sorted(row.bindings.items())
+    ]
+
+
+def _now() -> float:
+    return asyncio.get_running_loop().time()

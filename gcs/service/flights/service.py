@@ -1,0 +1,383 @@
+"""Flights: a plan bound to vehicles, uploaded, started, followed, recorded and streamed.
+
+A flight's record (bindings, state, uploads, events) is in storage; what lives only
+while the service runs (the `Fleet`, the runner following the flight, the listeners)
+is its `ActiveFlight`. Upload answers when every mission is verified or refused (its
+waits are bounded by the mission protocol's); start answers at once with the flight
+`starting`, and the runner arms, lines up, starts and follows the fleet, ending the
+flight `landed` (or `ended`, `interrupted`) on its own. The operator's commands are in
+`operator.py`; they pre-empt everything here.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import logging
+from typing import Any
+
+from gcs.fleet.crew import FleetSettings
+from gcs.fleet.events import Progress
+from gcs.fleet.fleet import Fleet
+from gcs.fleet.outcome import VehicleOutcome
+from gcs.mavlink.link import VehicleLink
+from gcs.mission.files import plan_document
+from gcs.mission.pacing import PacedFlight, paced_flight
+from gcs.service.flights.active import ActiveFlight, VehicleAnswer, event_json
+from gcs.service.flights.book import FlightBook
+from gcs.service.flights.slot import Preempted
+from gcs.service.live_replanning import replan_flight
+from gcs.service.metrics import ServiceMetrics
+from gcs.service.states import FlightState, StateConflict
+from gcs.service.storage import PlanRepository, ScenarioRepository, VehicleRepository
+from gcs.service.storage.tables import FlightRow, UploadRow
+from gcs.service.vehicle_registry import VehicleRegistry
+from planner.live_replan import NewObject
+from planner.plan import Plan
+from planner.scenario import Scenario
+
+log = logging.getLogger("mvo_gcs.flights")
+F = FlightState
+
+
+class BadObject(ValueError):
+    """A reported object the planner cannot place (outside the grid, bad window); 422."""
+
+
+class BadBindings(ValueError):
+    """The bindings do not pair the plan's UAVs with vehicles one to one; answered 422."""
+
+
+class FlightService:
+    def __init__(
+        self,
+        *,
+        book: FlightBook,
+        plans: PlanRepository,
+        scenarios: ScenarioRepository,
+        vehicles: VehicleRepository,
+        registry: VehicleRegistry,
+        metrics: ServiceMetrics,
+        fleet_settings: FleetSettings | None = None,
+    ) -> None:
+        self.book, self.plans, self.scenarios = book, plans, scenarios
+        self.vehicles, self.registry, self.metrics = vehicles, registry, metrics
+        self.fleet_settings = fleet_settings or FleetSettings()
+
+    # --- creating ----------------------------------------------------------------------
+
+    async def create(
+        self, plan_id: str, bindings: dict[str, str], options: dict[str, Any]
+    ) -> FlightRow:
+        """Bind every UAV of a feasible plan to a distinct registered vehicle."""
+        plan = Plan(**(await self.plans.get(plan_id)).body)
+        if not plan.feasible:
+            raise StateConflict(f"plan {plan_id} is infeasible: it is not safe to fly")
+        uavs = {u.id for u in plan.uavs}
+        missing, extra = sorted(uavs - set(bindings)), sorted(set(bindings) - uavs)
+        if missing or extra:
+            raise BadBindings(
+                f"bindings must name every UAV of the plan exactly: missing {missing}, "
+                f"not in the plan {extra}"
+            )
+        if len(set(bindings.values())) != len(bindings):
+            raise BadBindings("bindings: each UAV needs its own vehicle")
+        for vehicle_id in bindings.values():
+            await self.vehicles.get(vehicle_id)
+        row: FlightRow = await self.book.flights.add(
+            FlightRow(plan_id=plan_id, bindings=bindings, options=options)
+        )
+        return row
+
+    # --- upload --------------------------------------------------------------------------
+
+    async def upload(self, flight_id: str) -> list[VehicleAnswer]:
+        """Every mission at once, each verified by reading it back; the vehicles then
+        belong to this flight until it has ended."""
+        slot = self.book.slot(flight_id)
+        async with slot.serial():
+            row = await self.book.row(flight_id)
+            FlightState(row.state).check(F.UPLOADING, flight_id)
+            links = self._links_on_the_ground(row)
+            paced = await self._paced(row, links)
+            async with self.book.claims:
+                await self.book.refuse_owned(row.bindings, flight_id)
+                await self.book.transition(flight_id, F.UPLOADING)
+            active = self._activate(row, links, paced)
+            try:
+                outcomes = await slot.run(self._upload(active))
+            except Preempted:
+                return self._answers(active, {}, note="cancelled: the flight was aborted")
+            return self._answers(active, outcomes)
+
+    def _links_on_the_ground(self, row: FlightRow) -> dict[str, VehicleLink]:
+        """Every bound vehicle's link, refusing vehicles that are offline or airborne."""
+        links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
+        for uav, link in links.items():
+            state = link.state
+            if state.armed or state.airborne:
+                what = "armed" if state.armed else "in the air"
+                raise StateConflict(
+                    f"vehicle {row.bindings[uav]} ({uav}) is {what}: "
+                    "a mission is uploaded only to a vehicle disarmed on the ground"
+                )
+        return links
+
+    async def _paced(self, row: FlightRow, links: dict[str, VehicleLink]) -> PacedFlight:
+        plan_row = await self.plans.get(row.plan_id)
+        scenario = Scenario(**(await self.scenarios.get(plan_row.scenario_id)).body)
+        if scenario.origin is None:
+            raise StateConflict(
+                f"flight {row.id}: scenario {plan_row.scenario_id} has no origin (latitude, "
+                "longitude, altitude of cell 0, 0), so its plan cannot be flown; give it one"
+            )
+        autopilots = {uav: link.autopilot for uav, link in links.items()}
+        return paced_flight(Plan(**plan_row.body), scenario, autopilots, **row.options)
+
+    def _activate(
+        self, row: FlightRow, links: dict[str, VehicleLink], paced: PacedFlight
+    ) -> ActiveFlight:
+        old = self.book.active.pop(row.id, None)
+        if old is not None:
+            old.fleet.close()
+        fleet = Fleet(links, paced.missions, settings=self.fleet_settings)
+        active = ActiveFlight(
+            row.id, fleet, paced.scenario, paced.plan, paced.missions, dict(row.bindings),
+            dict(row.options), paced.factor,
+        )  # fmt: skip
+        self.book.active[row.id] = active
+        active.pump = asyncio.ensure_future(self._pump(active))
+        return active
+
+    async def _upload(self, active: ActiveFlight) -> dict[str, VehicleOutcome[Any]]:
+        outcomes = await active.fleet.upload()
+        for uav, outcome in outcomes.items():
+            self.metrics.uploads.labels("ok" if outcome.ok else "failed").inc()
+            if outcome.value is not None:
+                self.metrics.upload_retries.inc(outcome.value.resends)
+            mission = active.missions[uav]
+            await self.book.flights.record_upload(
+                UploadRow(
+                    flight_id=active.flight_id, uav_id=uav, vehicle_id=active.vehicles[uav],
+                    ok=outcome.ok, items=len(mission), detail=outcome.detail,
+                    mission=plan_document(mission),
+                )
+            )  # fmt: skip
+        ok = all(o.ok for o in outcomes.values())
+        failed = ", ".join(uav for uav, o in outcomes.items() if not o.ok)
+        await self.book.transition(
+            active.flight_id,
+            F.UPLOADED if ok else F.UPLOAD_FAILED,
+            "" if ok else f"{failed} refused",
+        )
+        return outcomes
+
+    # --- start and the runner ----------------------------------------------------------
+
+    async def start(self, flight_id: str) -> FlightRow:
+        """Begin arming and lining up; answered at once, the flight is then `starting`."""
+        slot = self.book.slot(flight_id)
+        async with slot.serial():
+            row = await self.book.row(flight_id)
+            FlightState(row.state).check(F.STARTING, flight_id)
+            active = self.book.active.get(flight_id)
+            if active is None:
+                raise StateConflict(
+                    f"flight {flight_id}: the service restarted since the upload; upload again"
+                )
+            async with self.book.claims:
+                await self.book.refuse_owned(row.bindings, flight_id)
+                row = await self.book.transition(flight_id, F.STARTING)
+            slot.start_runner(self._run(active))
+            return row
+
+    async def _run(self, active: ActiveFlight) -> None:
+        """Prepare, start together, follow to the end; the flight's state says how it went."""
+        fleet, fid = active.fleet, active.flight_id
+        try:
+            outcomes = await fleet.prepare()
+            if all(o.ok for o in outcomes.values()):
+                outcomes = await fleet.start()
+            failed = {uav: o.detail for uav, o in outcomes.items() if not o.ok}
+            if failed:
+                await self._start_failed(active, failed)
+                return
+            await self.book.transition(fid, F.FLYING)
+            report = await fleet.follow()
+        except asyncio.CancelledError:
+            raise  # pre-empted by the operator, who has set the state
+        except Exception as exc:  # a bug must leave the flight in the operator's hands
+            log.exception("flight %s: the runner failed", fid)
+            await self.to_interrupted(fid, f"the ground station failed: {exc!r}")
+            return
+        if report.outcome == "landed":
+            await self.book.transition(fid, F.LANDED)
+        elif report.outcome == "ended":
+            await self.book.transition(fid, F.ENDED, f"withdrawn: {sorted(report.withdrawn)}")
+        elif report.outcome == "timeout":
+            await self.to_interrupted(fid, "the flight exceeded its time bound")
+        await self.retire_when_down(fid)
+
+    async def _start_failed(self, active: ActiveFlight, failed: dict[str, str]) -> None:
+        why = "; ".join(f"{uav}: {detail}" for uav, detail in sorted(failed.items()))
+        links = [m.link for m in active.fleet.crew.members.values()]
+        if all(link.state.down for link in links):
+            await self.book.transition(active.flight_id, F.UPLOADED, f"start failed: {why}")
+        else:
+            await self.to_interrupted(active.flight_id, f"start failed: {why}")
+
+    async def to_interrupted(self, flight_id: str, note: str) -> None:
+        with contextlib.suppress(StateConflict):
+            await self.book.transition(flight_id, F.INTERRUPTED, note)
+
+    async def retire_when_down(self, flight_id: str) -> None:
+        """For an ended flight: release what it registered and the fleet it kept."""
+        if (await self.book.state(flight_id)).is_open:
+            return
+        await self.book.events.flush()
+        active = self.book.forget(flight_id)
+        if active is not None:
+            active.fleet.close()
+
+    # --- events ------------------------------------------------------------------------
+
+    async def _pump(self, active: ActiveFlight) -> None:
+        """Store every fleet event but the periodic progress; pass all on live."""
+        async for event in active.fleet.events():
+            message = event_json(event)
+            if isinstance(event, Progress):
+                active.last_progress = event
+            else:
+                self.book.events.record(
+                    active.flight_id, message["kind"], message, message.get("uav_id")
+                )
+            active.tell(message)
+
+    # --- live replanning ---------------------------------------------------------------
+
+    async def report_object(self, flight_id: str, new_object: NewObject) -> dict[str, Any]:
+        """The wormhole step, live: replan and re-upload only the UAVs the object touches."""
+        slot = self.book.slot(flight_id)
+        async with slot.serial():
+            state = await self.book.state(flight_id)
+            active = self.book.active.get(flight_id)
+            if state not in (F.FLYING, F.PAUSED) or active is None:
+                raise StateConflict(f"flight {flight_id} is {state.value}, not flying")
+            try:
+                return await slot.run(self._replan(active, new_object))
+            except Preempted:
+                raise StateConflict(f"flight {flight_id} was aborted during the replan") from None
+
+    async def _replan(self, active: ActiveFlight, new_object: NewObject) -> dict[str, Any]:
+        options = active.options
+        try:
+            outcome = await replan_flight(
+                active.fleet, active.scenario, active.plan, new_object, list(active.objects),
+                altitude_m=options["altitude_m"], finish=options["finish"],
+                turn_radius_m=options["turn_radius_m"],
+            )  # fmt: skip
+        except ValueError as exc:  # the planner's verdict on the object itself
+            raise BadObject(str(exc)) from exc
+        active.objects.append(new_object)
+        active.plan = outcome.plan
+        result = outcome.result
+        self.metrics.replans.labels("feasible" if result.feasible else "unresolved").inc()
+        answer = {
+            "cell": list(new_object.cell),
+            "window": list(new_object.window) if new_object.window else None,
+            "plan_time_s": result.now,
+            "touched": result.touched,
+            "changed": sorted(result.changed),
+            "unresolved": result.unresolved,
+            "feasible": result.feasible,
+            "explanation": result.explanation,
+            "uploads": [
+                {"uav_id": u, "vehicle_id": active.vehicles[u], "ok": o.ok, "detail": o.detail}
+                for u, o in sorted(outcome.uploads.items())
+            ],
+        }
+        self.book.events.record(active.flight_id, "ObjectReported", {"type": "event", **answer})
+        active.tell({"type": "event", "kind": "ObjectReported", **answer})
+        return answer
+
+    # --- releasing and deleting ----------------------------------------------------------
+
+    async def cancel(self, flight_id: str) -> FlightRow:
+        """Release an unflown flight's vehicles (created, uploaded or upload_failed)."""
+        async with self.book.slot(flight_id).serial():
+            row = await self.book.transition(flight_id, F.CANCELLED, "cancelled by the operator")
+        await self.retire_when_down(flight_id)
+        return row
+
+    async def delete(self, flight_id: str) -> None:
+        state = await self.book.state(flight_id)
+        if state.is_open:
+            raise StateConflict(
+                f"flight {flight_id} is {state.value}: it may have vehicles in the air; "
+                "abort it or cancel it, and delete it once it has ended"
+            )
+        self.book.forget(flight_id)
+        await self.book.flights.delete(flight_id)
+
+    # --- live state ------------------------------------------------------------------------
+
+    async def snapshot(self, flight_id: str) -> dict[str, Any]:
+        """Every bound vehicle's position, mode, progress and schedule lag, now."""
+        state = await self.book.state(flight_id)
+        bindings = await self.book.bindings(flight_id)
+        active = self.book.active.get(flight_id)
+        progress = {p.uav_id: p for p in active.fleet.progress()} if active else {}
+        vehicles = []
+        for uav, vehicle_id in bindings.items():
+            entry: dict[str, Any] = {
+                "uav_id": uav,
+                "vehicle_id": vehicle_id,
+                **self.registry.state(vehicle_id),
+            }
+            if uav in progress:
+                entry["progress"] = dataclasses.asdict(progress[uav])
+            vehicles.append(entry)
+        return {
+            "type": "state",
+            "flight_id": flight_id,
+            "state": state.value,
+            "pace_factor": active.pace_factor if active else None,
+            "min_separation_m": active.fleet.min_separation_m if active else None,
+            "vehicles": vehicles,
+        }
+
+    async def listen(self, flight_id: str) -> asyncio.Queue[dict[str, Any]]:
+        await self.book.state(flight_id)
+        queue: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=1000)
+        active = self.book.active.get(flight_id)
+        if active is not None:
+            active.listeners.add(queue)
+        return queue
+
+    def unlisten(self, flight_id: str, queue: asyncio.Queue[dict[str, Any]]) -> None:
+        active = self.book.active.get(flight_id)
+        if active is not None:
+            active.listeners.discard(queue)
+
+    def _answers(
+        self,
+        active: ActiveFlight,
+        outcomes: dict[str, VehicleOutcome[Any]],
+        note: str = "",
+    ) -> list[VehicleAnswer]:
+        answers = []
+        for uav, vid in sorted(active.vehicles.items()):
+            outcome = outcomes.get(uav)
+            ok = outcome is not None and outcome.ok
+            answers.append(VehicleAnswer(uav, vid, ok, note or (outcome.detail if outcome else "")))
+        return answers
+
+    async def close(self) -> None:
+        """The service stops: stop following (the vehicles fly on; a restart finds the
+        flights `interrupted`, still owning their vehicles)."""
+        for flight_id in list(self.book.active):
+            await self.book.slot(flight_id).preempt()
+            active = self.book.forget(flight_id)
+            if active is not None:
+                active.fleet.close()
