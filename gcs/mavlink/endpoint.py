@@ -24,7 +24,7 @@ from gcs.mavlink.errors import LinkError
 Kind = Literal["udpout", "udpin", "tcp"]
 ALIASES = {"udp": "udpin", "udpin": "udpin", "udpout": "udpout", "tcp": "tcp"}
 RESOLVE_TIMEOUT_S = 3.0
-_PORT = re.compile(r"[0-9]{1,5}")
+_PORT = re.compile(r"[0-9]{1,10}")  # leading zeros allowed, as mavutil int()s it
 _HOST_LABEL = re.compile(r"(?!-)[a-z0-9-]{1,63}(?<!-)")
 _USAGE = "expected udpout:HOST:PORT, udpin:HOST:PORT or tcp:HOST:PORT"
 

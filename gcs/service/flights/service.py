@@ -99,10 +99,11 @@ class FlightService:
         async with slot.serial():
             row = await self.book.row(flight_id)
             FlightState(row.state).check(F.UPLOADING, flight_id)
-            links = self._links_on_the_ground(row)
+            links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
             paced = await self._paced(row, links)
             async with self.book.claims:
                 await self.book.refuse_owned(row.bindings, flight_id)
+                _refuse_airborne(row, links)
                 await self.book.transition(flight_id, F.UPLOADING)
             active = self._activate(row, links, paced)
             try:
@@ -110,19 +111,6 @@ class FlightService:
             except Preempted:
                 return self._answers(active, {}, note="cancelled: the flight was aborted")
             return self._answers(active, outcomes)
-
-    def _links_on_the_ground(self, row: FlightRow) -> dict[str, VehicleLink]:
-        """Every bound vehicle's link, refusing vehicles that are offline or airborne."""
-        links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
-        for uav, link in links.items():
-            state = link.state
-            if state.armed or state.airborne:
-                what = "armed" if state.armed else "in the air"
-                raise StateConflict(
-                    f"vehicle {row.bindings[uav]} ({uav}) is {what}: "
-                    "a mission is uploaded only to a vehicle disarmed on the ground"
-                )
-        return links
 
     async def _paced(self, row: FlightRow, links: dict[str, VehicleLink]) -> PacedFlight:
         plan_row = await self.plans.get(row.plan_id)
@@ -381,3 +369,16 @@ class FlightService:
             active = self.book.forget(flight_id)
             if active is not None:
                 active.fleet.close()
+
+
+def _refuse_airborne(row: FlightRow, links: dict[str, VehicleLink]) -> None:
+    """A mission goes only to a vehicle disarmed on the ground (not to one that is flying
+    for a flight the service no longer follows, after a restart)."""
+    for uav, link in links.items():
+        state = link.state
+        if state.armed or state.airborne:
+            what = "armed" if state.armed else "in the air"
+            raise StateConflict(
+                f"vehicle {row.bindings[uav]} ({uav}) is {what}: "
+                "a mission is uploaded only to a vehicle disarmed on the ground"
+            )
