@@ -18,8 +18,10 @@ TAKEOFF_DONE_MARGIN_M = 0.5
 
 
 class Manoeuvre(Protocol):
-    phase: int
-    """The EXTENDED_SYS_STATE landed_state while this runs (once off the ground)."""
+    @property
+    def phase(self) -> int:
+        """The EXTENDED_SYS_STATE landed_state while this runs (once off the ground)."""
+        ...
 
     def start(self, body: Body, now: float) -> None: ...
 

@@ -10,17 +10,6 @@ from .flavour import Flavour
 from .snapshot import VehicleState
 
 S = mavlink
-SENSORS_PRESENT = (
-    S.MAV_SYS_STATUS_SENSOR_3D_GYRO | S.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-    | S.MAV_SYS_STATUS_SENSOR_3D_MAG | S.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-    | S.MAV_SYS_STATUS_SENSOR_GPS | S.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
-    | S.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION | S.MAV_SYS_STATUS_SENSOR_YAW_POSITION
-    | S.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL | S.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
-    | S.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | S.MAV_SYS_STATUS_AHRS
-    | S.MAV_SYS_STATUS_SENSOR_BATTERY | S.MAV_SYS_STATUS_PREARM_CHECK
-)
-NEEDS_ESTIMATE = S.MAV_SYS_STATUS_SENSOR_GPS | S.MAV_SYS_STATUS_PREARM_CHECK
-"""Health bits that turn true only once the position estimate is ready."""
 
 CAPABILITIES = (
     S.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | S.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
@@ -47,9 +36,9 @@ def heartbeat(state: VehicleState, flavour: Flavour) -> Message:
 
 
 def sys_status(state: VehicleState, flavour: Flavour) -> Message:
-    health = SENSORS_PRESENT if state.estimate_ready else SENSORS_PRESENT & ~NEEDS_ESTIMATE
+    present, enabled, health = state.sensors
     return S.MAVLink_sys_status_message(
-        SENSORS_PRESENT, SENSORS_PRESENT, health, 250, BATTERY_MV, 1200 if state.armed else 0,
+        present, enabled, health, 250, BATTERY_MV, 1200 if state.armed else 0,
         95, 0, 0, 0, 0, 0, 0,
     )
 
@@ -65,7 +54,7 @@ def gps_raw_int(state: VehicleState, flavour: Flavour) -> Message:
 
 def global_position_int(state: VehicleState, flavour: Flavour) -> Message:
     north, east, down = state.velocity_ned
-    known = state.estimate_ready
+    known = state.position_known
     return S.MAVLink_global_position_int_message(
         _msec(state), _e7(state.lat) if known else 0, _e7(state.lon) if known else 0,
         round(state.alt_amsl * 1000) if known else 0, round(state.alt * 1000),
@@ -93,19 +82,32 @@ def home_position(state: VehicleState, flavour: Flavour) -> Message:
     )
 
 
+def gps_global_origin(state: VehicleState, flavour: Flavour) -> Message:
+    """The EKF origin: where home was first set (ArduPilot sends it when that happens)."""
+    lat, lon, alt = state.home
+    return S.MAVLink_gps_global_origin_message(_e7(lat), _e7(lon), round(alt * 1000),
+                                               _usec(state))
+
+
+def timesync(state: VehicleState, flavour: Flavour) -> Message:
+    """ArduPilot's own TIMESYNC request (tc1 0, ts1 its clock), every 10 s unasked."""
+    return S.MAVLink_timesync_message(0, nanoseconds(state))
+
+
 def extended_sys_state(state: VehicleState, flavour: Flavour) -> Message:
     return S.MAVLink_extended_sys_state_message(S.MAV_VTOL_STATE_UNDEFINED, state.landed_state)
 
 
 def ekf_status_report(state: VehicleState, flavour: Flavour) -> Message:
     """ArduPilot's estimator summary; MAVSDK asks for it along with SYS_STATUS (health)."""
-    flags = EKF_READY if state.estimate_ready else EKF_NO_POSITION
+    flags = EKF_READY if state.estimate_ready else EKF_NO_POSITION  # MAVSDK's health
     return S.MAVLink_ekf_status_report_message(flags, 0.02, 0.02, 0.02, 0.02, 0.0, 0.0)
 
 
 def mission_current(state: VehicleState, flavour: Flavour) -> Message:
+    mission_mode = 1 if state.mode == "AUTO" else 0  # "current mode requires a mission"
     return S.MAVLink_mission_current_message(
-        state.mission_seq, state.mission_total, state.mission_state, 0)
+        state.mission_seq, state.mission_total, state.mission_state, mission_mode)
 
 
 def battery_status(state: VehicleState, flavour: Flavour) -> Message:
@@ -132,8 +134,13 @@ BUILDERS: dict[int, Callable[[VehicleState, Flavour], Message]] = {
     S.MAVLINK_MSG_ID_BATTERY_STATUS: battery_status,
     S.MAVLINK_MSG_ID_SYSTEM_TIME: system_time,
     S.MAVLINK_MSG_ID_EKF_STATUS_REPORT: ekf_status_report,
+    S.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN: gps_global_origin,
+    S.MAVLINK_MSG_ID_TIMESYNC: timesync,
 }
-ARDUPILOT_ONLY = frozenset({S.MAVLINK_MSG_ID_EKF_STATUS_REPORT})
+NEEDS_HOME = frozenset({S.MAVLINK_MSG_ID_HOME_POSITION, S.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN})
+"""Messages that exist only once home (the EKF origin) is set."""
+ARDUPILOT_ONLY = frozenset({S.MAVLINK_MSG_ID_EKF_STATUS_REPORT,
+                            S.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN})
 
 
 def streamable(flavour: Flavour) -> frozenset[int]:
@@ -182,3 +189,8 @@ def _msec(state: VehicleState) -> int:
 
 def _usec(state: VehicleState) -> int:
     return round(state.t * 1e6)
+
+
+def nanoseconds(state: VehicleState) -> int:
+    """The vehicle's clock for TIMESYNC: nanoseconds since boot."""
+    return round(state.uptime * 1e9)

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import math
+from dataclasses import astuple, dataclass, replace
 
 from .codec import Message, mavlink
 
@@ -73,3 +74,10 @@ class MissionItem:
             self.autocontinue, self.param1, self.param2, self.param3, self.param4,
             self.x * scale, self.y * scale, self.z, self.mission_type,
         )
+
+
+def same_item(a: MissionItem, b: MissionItem) -> bool:
+    """Field-by-field equality in which NaN equals NaN (a re-sent item carries the same NaNs)."""
+    return all(x == y or (isinstance(x, float) and isinstance(y, float)
+                          and math.isnan(x) and math.isnan(y))
+               for x, y in zip(astuple(a), astuple(b), strict=True))

@@ -1,7 +1,8 @@
 """Flies the stored mission in AUTO: one manoeuvre per navigation item, DO items at once.
 
-Reports progress the way an autopilot does (MISSION_CURRENT on every change,
-MISSION_ITEM_REACHED for each navigation item) through `MissionEvents`.
+Reports progress through `MissionEvents`: every item started and every item completed
+(DO items too); the vehicle decides, per autopilot, which of those it tells the ground
+station and how (ArduCopter merges and skips some, see vehicle.py).
 """
 
 from __future__ import annotations
@@ -40,7 +41,9 @@ class MissionState(enum.IntEnum):
 
 
 class MissionEvents(Protocol):
-    def item_reached(self, seq: int) -> None: ...
+    def item_started(self, item: MissionItem) -> None: ...
+
+    def item_reached(self, item: MissionItem) -> None: ...
 
     def current_changed(self) -> None: ...
 
@@ -118,7 +121,19 @@ class MissionRunner:
             self.store.set_current(self.store.first_item)
             self._complete = False
         self._running, self._paused = True, False
+        self.store.started = True
         self._begin_item(now)
+
+    def rewind(self, active: bool) -> None:
+        """ArduCopter on disarming: the mission goes back to its first item; still in AUTO, it
+        is loaded again at once (MISSION_CURRENT seq 1, ACTIVE) and waits for the motors."""
+        self._complete, self._paused, self._manoeuvre = False, False, None
+        self.store.current = self.store.first_item
+        self._running = active and self.store.total > 0
+        if self._running:
+            self.store.started = True
+            self._events.item_started(self.store.items()[self.store.current])
+        self._events.current_changed()
 
     def stop(self) -> None:
         """Leave AUTO: remember the current item, drop its manoeuvre."""
@@ -153,6 +168,7 @@ class MissionRunner:
         items = self.store.items()
         while self.store.current < len(items):
             item = items[self.store.current]
+            self._events.item_started(item)
             manoeuvre = self._manoeuvre_for(item, items)
             if manoeuvre is not None:
                 self._manoeuvre = manoeuvre
@@ -171,8 +187,7 @@ class MissionRunner:
             self._begin_item(now)
 
     def _complete_item(self, item: MissionItem) -> None:
-        if item.command in NAV_COMMANDS:
-            self._events.item_reached(item.seq)
+        self._events.item_reached(item)
 
     def _advance(self, items: list[MissionItem]) -> bool:
         if self.store.current + 1 >= len(items):

@@ -1,8 +1,11 @@
 """The vehicle side of the MAVLink mission protocol: upload, download, clear, set current.
 
 Uploads are staged and swapped in only when complete, so a failed, timed-out or
-interrupted upload leaves the previous mission intact. Timing runs on simulated time
-through `tick`. Messages go out through an `Outbox`; nothing here touches a socket.
+interrupted upload leaves the previous mission intact. Every time here (`now` of `handle`
+and `tick`) is the protocol clock, which the vehicle feeds with WALL-clock seconds: a real
+autopilot's re-request and cancel timers count real milliseconds, whatever the speed-up,
+so a ground station's step timeouts meet them as on a real link. Messages go out through
+an `Outbox`; nothing here touches a socket.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from typing import ClassVar, Protocol
 
 from .codec import Message, Sender, mavlink
 from .flavour import Flavour
-from .mission_item import SUPPORTED_FRAMES, MissionItem
+from .mission_item import SUPPORTED_FRAMES, MissionItem, same_item
 
 MISSION, FENCE, RALLY, ALL = (mavlink.MAV_MISSION_TYPE_MISSION, mavlink.MAV_MISSION_TYPE_FENCE,
                               mavlink.MAV_MISSION_TYPE_RALLY, mavlink.MAV_MISSION_TYPE_ALL)
@@ -73,6 +76,11 @@ class MissionStore:
         self.capacity = capacity
         self.reject_at: str | None = None
         """Fault: "count" or "last_item" makes uploads fail there with MAV_MISSION_ERROR."""
+        self.started = False
+        """A mission has run (or a current item was set) since it was stored: ArduPilot
+        reports MISSION_CURRENT seq 0 before that."""
+        self.storage_ready = True
+        """False while booting: ArduPilot's mission storage then holds 0 items (NO_SPACE)."""
         self.on_mission_changed: Callable[[], None] = lambda: None
         self.on_current_changed: Callable[[], None] = lambda: None
         self._out = out
@@ -102,6 +110,13 @@ class MissionStore:
         return max(0, len(self._lists[MISSION]) - self.first_item)
 
     @property
+    def reported_current(self) -> int:
+        """MISSION_CURRENT.seq: 0 without a mission and (ArduPilot) until one has run."""
+        if not self.total or (self.flavour.home_is_item_zero and not self.started):
+            return 0
+        return self.current
+
+    @property
     def uploading(self) -> bool:
         return self._upload is not None
 
@@ -109,6 +124,7 @@ class MissionStore:
         if not self.first_item <= seq < len(self._lists[MISSION]):
             return False
         self.current = seq
+        self.started = True
         return True
 
     def load(self, items: list[MissionItem], mission_type: int = MISSION) -> None:
@@ -122,6 +138,7 @@ class MissionStore:
         self._upload = None
         self._completed = None
         self.current = self.first_item
+        self.started = False
         self.on_mission_changed()
 
     # -- the protocol -----------------------------------------------------------------------
@@ -143,6 +160,11 @@ class MissionStore:
         elif now - upload.last_request >= self.flavour.rerequest_s:
             self._request(upload, now)
 
+    @property
+    def room(self) -> int:
+        """How many items an upload may have now (0 until the storage is ready)."""
+        return self.capacity if self.storage_ready else 0
+
     def _on_count(self, msg: Message, sender: Sender, now: float) -> None:
         mission_type = msg.mission_type
         if mission_type not in self._lists:
@@ -155,8 +177,9 @@ class MissionStore:
             self._upload = None  # the same GCS restarts its upload
         if self.reject_at == "count":
             self._ack(sender, mission_type, mavlink.MAV_MISSION_ERROR)
-        elif msg.count > self.capacity:
+        elif msg.count > self.room:
             self._ack(sender, mission_type, mavlink.MAV_MISSION_NO_SPACE)
+            self._out.say(mavlink.MAV_SEVERITY_WARNING, f"Only {self.room} items are supported")
         elif msg.count == 0:
             self._replace(mission_type, [])
             self._ack(sender, mission_type, mavlink.MAV_MISSION_ACCEPTED)
@@ -192,7 +215,7 @@ class MissionStore:
     def _answer_stray_item(self, item: MissionItem, sender: Sender) -> None:
         done = self._completed
         if (done is not None and done.sender == sender and done.mission_type == item.mission_type
-                and done.last_item == item):
+                and same_item(done.last_item, item)):
             self._ack(sender, item.mission_type, mavlink.MAV_MISSION_ACCEPTED)
         else:
             self._ack(sender, item.mission_type, mavlink.MAV_MISSION_ERROR)
@@ -205,6 +228,8 @@ class MissionStore:
             return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
         if item.command not in SUPPORTED_COMMANDS[upload.mission_type]:
             return mavlink.MAV_MISSION_UNSUPPORTED
+        if upload.mission_type == MISSION:
+            return self.flavour.item_refusal(item)
         return None
 
     def _finish(self, upload: _Upload) -> None:
@@ -219,11 +244,14 @@ class MissionStore:
             self._out.say(mavlink.MAV_SEVERITY_INFO, "Flight plan received")
 
     def _replace(self, mission_type: int, items: list[MissionItem]) -> None:
+        if mission_type == MISSION:
+            items = [self.flavour.store_item(item) for item in items]
         if mission_type == MISSION and items and self.flavour.home_is_item_zero:
             items = [self._home_item(), *items[1:]]
         self._lists[mission_type] = list(items)
         if mission_type == MISSION:
             self.current = self.first_item
+            self.started = False
             self.on_mission_changed()
 
     def _on_request_list(self, msg: Message, sender: Sender, now: float) -> None:

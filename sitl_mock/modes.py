@@ -69,6 +69,13 @@ ARDUCOPTER_MODES = ModeTable(
 )
 """ArduCopter: base_mode 0x51 (0x59 in autopilot-driven modes), 0xD9 armed, as SITL sends."""
 
+ARDUCOPTER_NAMES = {
+    FlightMode.STABILIZE: "Stabilize", FlightMode.AUTO: "Auto", FlightMode.GUIDED: "Guided",
+    FlightMode.LOITER: "Loiter", FlightMode.RTL: "RTL", FlightMode.LAND: "Land",
+    FlightMode.BRAKE: "Brake",
+}
+"""What ArduCopter's `Mode::name()` calls each mode in its STATUSTEXTs."""
+
 
 def _px4(main: int, sub: int = 0) -> int:
     return (main << 16) | (sub << 24)

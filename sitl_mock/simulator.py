@@ -1,5 +1,8 @@
 """Runs N vehicles in one asyncio loop: fixed physics steps on simulated time, the sockets,
-and the truth (tracks, separation). Usable from a test thread or inside a running loop."""
+and the truth (tracks, separation). Usable from a test thread or inside a running loop.
+
+Vehicle behaviour runs on the simulated clock (`speedup` times wall time, in fixed steps);
+link-protocol timers run on `wall_clock` (time.monotonic unless a test injects another)."""
 
 from __future__ import annotations
 
@@ -22,7 +25,7 @@ from .kinematics import PointMassFleet
 from .mission_item import MissionItem
 from .snapshot import VehicleState
 from .track import Separation, SeparationMonitor, TrackPoint, TrackRecorder
-from .transport import connection_string, open_endpoint
+from .transport import UdpOutput, connection_string, open_endpoint, parse_output
 from .vehicle import Vehicle, VehicleConfig
 
 T = TypeVar("T")
@@ -37,7 +40,8 @@ class Simulator:
 
     def __init__(self, vehicles: Sequence[VehicleConfig], speedup: float = 1.0, seed: int = 0,
                  host: str = "127.0.0.1", stream_by_default: bool = False,
-                 step_s: float = DEFAULT_STEP_S, track_log: Path | str | None = None) -> None:
+                 step_s: float = DEFAULT_STEP_S, track_log: Path | str | None = None,
+                 wall_clock: Callable[[], float] = time.monotonic) -> None:
         sysids = [config.sysid for config in vehicles]
         if not sysids:
             raise ValueError("at least one vehicle is needed")
@@ -55,7 +59,7 @@ class Simulator:
         self._vehicles = {
             config.sysid: Vehicle(config, self._fleet.body(i), tuple(homes_en[i]),
                                   self._frame.to_local, self._geodetic_of, lambda: self.sim_time,
-                                  rngs[i], stream_by_default)
+                                  rngs[i], stream_by_default, wall_clock)
             for i, config in enumerate(vehicles)
         }
         self._track = TrackRecorder(sysids, Path(track_log) if track_log else None)
@@ -66,6 +70,7 @@ class Simulator:
         self._task: asyncio.Task | None = None
         self._thread: threading.Thread | None = None
         self._stopping = False
+        self._outputs: dict[tuple[str, int], UdpOutput] = {}
 
     # -- life cycle ----------------------------------------------------------------------
 
@@ -77,6 +82,7 @@ class Simulator:
             config = vehicle.config
             vehicle.endpoint = await open_endpoint(config.transport, self.host, config.port,
                                                    vehicle.on_packet)
+            vehicle.outputs = [await self._output(text, vehicle) for text in config.outputs]
         self._stopping = False
         self._clock.start()
         self._task = asyncio.create_task(self._run())
@@ -89,7 +95,19 @@ class Simulator:
         for vehicle in self._vehicles.values():
             if vehicle.endpoint is not None:
                 await vehicle.endpoint.close()
+        for output in self._outputs.values():
+            await output.close()
+        self._outputs.clear()
         self._track.close()
+
+    async def _output(self, text: str, vehicle: Vehicle) -> UdpOutput:
+        """The one socket for a `udp:HOST:PORT` output, opened by the first vehicle naming it."""
+        address = parse_output(text)
+        output = self._outputs.get(address)
+        if output is None:
+            output = self._outputs[address] = await UdpOutput.open(*address)
+        output.subscribe(vehicle.on_packet)
+        return output
 
     @contextlib.contextmanager
     def running(self) -> Iterator[Simulator]:
@@ -169,8 +187,18 @@ class Simulator:
         return endpoint.port
 
     def connection_string(self, sysid: int) -> str:
+        """How a pymavlink client reaches the vehicle's own server (`udpout:` or `tcp:`)."""
         return connection_string(self._vehicle(sysid).config.transport, self.host,
                                  self.port(sysid))
+
+    def output_addresses(self) -> list[tuple[str, int]]:
+        """Every `--out` ground-station address the vehicles send to."""
+        return sorted({parse_output(text) for v in self._vehicles.values()
+                       for text in v.config.outputs})
+
+    def rejected_packets(self, sysid: int) -> int:
+        """Packets a signing vehicle dropped (unsigned or signed with another key)."""
+        return self._call(lambda: self._vehicle(sysid).rejected_packets)
 
     def set_faults(self, sysid: int, faults: Faults) -> None:
         self._call(self._vehicle(sysid).set_faults, faults)
@@ -201,7 +229,12 @@ class Simulator:
 
     def set_param(self, sysid: int, name: str, value: float) -> None:
         vehicle = self._vehicle(sysid)
-        self._call(lambda: (vehicle.params.set(name, value), vehicle.flight.apply_limits()))
+
+        def set_and_apply() -> None:
+            vehicle.params.set(name, value)
+            vehicle.flight.apply_limits()
+
+        self._call(set_and_apply)
 
     def track(self, sysid: int) -> list[TrackPoint]:
         return self._call(self._track.track, sysid)

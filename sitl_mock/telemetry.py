@@ -36,11 +36,18 @@ STREAM_GROUPS: dict[int, tuple[int, ...]] = {
 """ArduCopter's REQUEST_DATA_STREAM groups, restricted to the messages simulated here."""
 
 
+UNASKED_ARDUPILOT_S: dict[int, float] = {S.MAVLINK_MSG_ID_TIMESYNC: 10.0}
+"""What ArduCopter sends besides HEARTBEAT before anyone asks, every so many seconds (its
+first after one interval). HOME_POSITION and GPS_GLOBAL_ORIGIN come on events instead."""
+
+
 class TelemetrySchedule:
     """Per-message intervals and next due times; `due` returns what to send now."""
 
-    def __init__(self, stream_by_default: bool, streamable: frozenset[int]) -> None:
+    def __init__(self, stream_by_default: bool, streamable: frozenset[int],
+                 unasked_s: dict[int, float] | None = None) -> None:
         self._streamable = streamable
+        self._unasked = dict(unasked_s or {})
         self._intervals: dict[int, float] = {}
         self._next: dict[int, float] = {}
         self._next_any = math.inf
@@ -51,6 +58,8 @@ class TelemetrySchedule:
         self._next.clear()
         self._next_any = math.inf
         self.set_interval(S.MAVLINK_MSG_ID_HEARTBEAT, HEARTBEAT_INTERVAL_S, now)
+        for msg_id, seconds in self._unasked.items():
+            self.set_interval(msg_id, seconds, now + seconds)
         if stream_by_default:
             for msg_id, rate in DEFAULT_RATES_HZ.items():
                 self.set_interval(msg_id, 1.0 / rate, now)
