@@ -18,25 +18,40 @@ import numpy as np
 from .codec import mavlink
 from .mission_item import MissionItem
 
-LOCATION_COMMANDS = frozenset({
-    mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_UNLIM,
-    mavlink.MAV_CMD_NAV_LOITER_TIME, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-    mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_TAKEOFF,
-})
+LOCATION_COMMANDS = frozenset(
+    {
+        mavlink.MAV_CMD_NAV_WAYPOINT,
+        mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+        mavlink.MAV_CMD_NAV_LOITER_TIME,
+        mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+        mavlink.MAV_CMD_NAV_LAND,
+        mavlink.MAV_CMD_NAV_TAKEOFF,
+    }
+)
 """Commands whose position ArduPilot keeps (`AP_Mission::stored_in_location`)."""
-NAN_PARAM4_ALLOWED = frozenset({
-    mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_UNLIM, mavlink.MAV_CMD_NAV_LAND,
-    mavlink.MAV_CMD_NAV_TAKEOFF,
-})
+NAN_PARAM4_ALLOWED = frozenset(
+    {
+        mavlink.MAV_CMD_NAV_WAYPOINT,
+        mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+        mavlink.MAV_CMD_NAV_LAND,
+        mavlink.MAV_CMD_NAV_TAKEOFF,
+    }
+)
 """Commands for which `sanity_check_params` lets param4 be NaN; any other NaN is refused."""
-RELATIVE_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                             mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
-ABSOLUTE_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT,
-                             mavlink.MAV_FRAME_MISSION})
+RELATIVE_FRAMES = frozenset(
+    {mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}
+)
+ABSOLUTE_FRAMES = frozenset(
+    {mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_MISSION}
+)
 LOCATION_ALT_MAX_M = 83000.0
 UINT16_MAX = 0xFFFF
-INVALID_PARAM = (mavlink.MAV_MISSION_INVALID_PARAM1, mavlink.MAV_MISSION_INVALID_PARAM2,
-                 mavlink.MAV_MISSION_INVALID_PARAM3, mavlink.MAV_MISSION_INVALID_PARAM4)
+INVALID_PARAM = (
+    mavlink.MAV_MISSION_INVALID_PARAM1,
+    mavlink.MAV_MISSION_INVALID_PARAM2,
+    mavlink.MAV_MISSION_INVALID_PARAM3,
+    mavlink.MAV_MISSION_INVALID_PARAM4,
+)
 
 
 def refusal(item: MissionItem) -> int | None:
@@ -65,13 +80,27 @@ def stored(item: MissionItem) -> MissionItem:
     """The item as a download returns it once ArduPilot has stored it."""
     params = _stored_params(item)
     if item.command in LOCATION_COMMANDS:
-        frame = (mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT if item.frame in RELATIVE_FRAMES
-                 else mavlink.MAV_FRAME_GLOBAL)
+        frame = (
+            mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+            if item.frame in RELATIVE_FRAMES
+            else mavlink.MAV_FRAME_GLOBAL
+        )
         x, y, z = item.x, item.y, _stored_alt(item.z)
     else:
         frame, x, y, z = 0, 0, 0, 0.0
-    return replace(item, frame=frame, param1=params[0], param2=params[1], param3=params[2],
-                   param4=params[3], x=x, y=y, z=z, autocontinue=1, current=0)
+    return replace(
+        item,
+        frame=frame,
+        param1=params[0],
+        param2=params[1],
+        param3=params[2],
+        param4=params[3],
+        x=x,
+        y=y,
+        z=z,
+        autocontinue=1,
+        current=0,
+    )
 
 
 def _stored_params(item: MissionItem) -> tuple[float, float, float, float]:
@@ -80,8 +109,12 @@ def _stored_params(item: MissionItem) -> tuple[float, float, float, float]:
     if command == mavlink.MAV_CMD_NAV_WAYPOINT:
         return (float(_uint16(item.param1)), 0.0, 0.0, 0.0)
     if command == mavlink.MAV_CMD_NAV_LOITER_TIME:
-        return (float(_uint16(item.param1)), 0.0, -1.0 if item.param3 < 0 else 1.0,
-                1.0 if item.param4 > 0 else 0.0)
+        return (
+            float(_uint16(item.param1)),
+            0.0,
+            -1.0 if item.param3 < 0 else 1.0,
+            1.0 if item.param4 > 0 else 0.0,
+        )
     if command == mavlink.MAV_CMD_NAV_LOITER_UNLIM:
         radius = float(_uint16(abs(item.param3)))
         return (0.0, 0.0, -radius if item.param3 < 0 else radius, 0.0)

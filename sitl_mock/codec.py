@@ -23,8 +23,9 @@ class Encoder:
     """Packs messages as one vehicle (its sysid, component 1), numbering them like an autopilot
     and signing them when the vehicle has a key."""
 
-    def __init__(self, sysid: int, compid: int = VEHICLE_COMPONENT,
-                 key: bytes | None = None) -> None:
+    def __init__(
+        self, sysid: int, compid: int = VEHICLE_COMPONENT, key: bytes | None = None
+    ) -> None:
         self._mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
         if key is not None:
             signing.sign_outgoing(self._mav, key)

@@ -45,8 +45,15 @@ class Command:
         if msg.get_type() == "COMMAND_INT":
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
             return cls(msg.command, params, 0, sender)
-        params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6,
-                  msg.param7)
+        params = (
+            msg.param1,
+            msg.param2,
+            msg.param3,
+            msg.param4,
+            msg.param5,
+            msg.param6,
+            msg.param7,
+        )
         return cls(msg.command, params, msg.confirmation, sender)
 
 
@@ -75,10 +82,15 @@ _Handler = Callable[["CommandHandler", tuple[float, ...], float], Outcome]
 class CommandHandler:
     """Maps commands to the flight controller, mission store and telemetry schedule."""
 
-    def __init__(self, flight: FlightController, store: MissionStore,
-                 schedule: TelemetrySchedule, current_changed: Callable[[], None],
-                 faults: Callable[[], Faults] = Faults,
-                 say: Callable[[int, str], None] = lambda severity, text: None) -> None:
+    def __init__(
+        self,
+        flight: FlightController,
+        store: MissionStore,
+        schedule: TelemetrySchedule,
+        current_changed: Callable[[], None],
+        faults: Callable[[], Faults] = Faults,
+        say: Callable[[int, str], None] = lambda severity, text: None,
+    ) -> None:
         self._flight = flight
         self._store = store
         self._schedule = schedule
@@ -91,9 +103,12 @@ class CommandHandler:
         """Answer a command at simulated time `now`; `wall_now` times the retry window."""
         key = (command.sender.sysid, command.sender.compid, command.id)
         previous = self._answered.get(key)
-        if (command.confirmation > 0 and previous is not None
-                and previous.params == command.params
-                and wall_now - previous.at <= RETRY_WINDOW_S):
+        if (
+            command.confirmation > 0
+            and previous is not None
+            and previous.params == command.params
+            and wall_now - previous.at <= RETRY_WINDOW_S
+        ):
             return previous.outcome  # a retry of a command already carried out
         outcome = self._refused(command) or self._carry_out(command, now)
         self._answered[key] = _Answered(command.params, outcome, wall_now)
@@ -108,8 +123,9 @@ class CommandHandler:
         faults, command_id = self._faults(), command.id
         if command_id in faults.refuse_commands:
             return Outcome(faults.refuse_result)
-        arming = (command_id == mavlink.MAV_CMD_COMPONENT_ARM_DISARM
-                  and _whole(command.params[0]) == 1)
+        arming = (
+            command_id == mavlink.MAV_CMD_COMPONENT_ARM_DISARM and _whole(command.params[0]) == 1
+        )
         if arming and faults.fail_arming and not self._flight.armed:
             self._say(mavlink.MAV_SEVERITY_CRITICAL, FAULT_ARMING_TEXT)
             return Outcome(FAILED)

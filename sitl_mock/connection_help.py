@@ -30,8 +30,11 @@ def server_lines(transport: str, host: str, port: int) -> list[str]:
 
 def output_lines(host: str, port: int) -> list[str]:
     """How each client listens where the vehicles send (every vehicle, one port)."""
-    qgc = ("QGC       nothing to set: its default UDP link listens on 14550" if port == 14550
-           else f"QGC       Comm Links > Add > UDP, listening port {port}")
+    qgc = (
+        "QGC       nothing to set: its default UDP link listens on 14550"
+        if port == 14550
+        else f"QGC       Comm Links > Add > UDP, listening port {port}"
+    )
     return [
         f"pymavlink udpin:{host}:{port}",
         f"MAVProxy  mavproxy.py --master=udpin:{host}:{port}",

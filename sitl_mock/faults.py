@@ -20,8 +20,16 @@ P = TypeVar("P")
 REORDER_HOLD_S = 0.1
 """A packet held back for reordering is released after this long if nothing overtakes it."""
 REJECT_POINTS = ("count", "last_item")
-VEHICLE_FAULTS = frozenset({"reject_missions", "reject_at", "fail_arming", "refuse_takeoff",
-                            "refuse_commands", "refuse_result"})
+VEHICLE_FAULTS = frozenset(
+    {
+        "reject_missions",
+        "reject_at",
+        "fail_arming",
+        "refuse_takeoff",
+        "refuse_commands",
+        "refuse_result",
+    }
+)
 """Faults of the vehicle, not of the link."""
 
 
@@ -67,8 +75,7 @@ class Faults:
 
     @property
     def link_is_clean(self) -> bool:
-        return all(getattr(self, f.name) == 0 for f in fields(self)
-                   if f.name not in VEHICLE_FAULTS)
+        return all(getattr(self, f.name) == 0 for f in fields(self) if f.name not in VEHICLE_FAULTS)
 
 
 class _Channel(Generic[P]):

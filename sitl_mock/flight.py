@@ -39,10 +39,18 @@ class Home:
 class FlightController:
     """One vehicle's flight state and the decisions a real autopilot takes about it."""
 
-    def __init__(self, flavour: Flavour, body: Body, params: ParameterSet, store: MissionStore,
-                 home: Home, to_local: Callable[[float, float], tuple[float, float]],
-                 events: MissionEvents, say: Callable[[int, str], None],
-                 timeline: Timeline) -> None:
+    def __init__(
+        self,
+        flavour: Flavour,
+        body: Body,
+        params: ParameterSet,
+        store: MissionStore,
+        home: Home,
+        to_local: Callable[[float, float], tuple[float, float]],
+        events: MissionEvents,
+        say: Callable[[int, str], None],
+        timeline: Timeline,
+    ) -> None:
         self.flavour = flavour
         self.body = body
         self.params = params
@@ -54,8 +62,14 @@ class FlightController:
         placer = ItemPlacer(to_local, lambda: self.home.alt_amsl)
         implicit_takeoff = None if flavour.needs_mission_start else self._px4_takeoff_alt()
         self.runner = MissionRunner(
-            store, body, placer, self.limits, lambda: (self.home.east, self.home.north),
-            lambda: flavour.rtl_alt_m(params), events, takeoff_alt_if_missing=implicit_takeoff,
+            store,
+            body,
+            placer,
+            self.limits,
+            lambda: (self.home.east, self.home.north),
+            lambda: flavour.rtl_alt_m(params),
+            events,
+            takeoff_alt_if_missing=implicit_takeoff,
         )
         self._reset_state()
 
@@ -100,12 +114,18 @@ class FlightController:
 
     @property
     def landed_state(self) -> int:
-        phase = self.runner.phase if self.mode == FlightMode.AUTO else (
-            None if self._manoeuvre is None else self._manoeuvre.phase)
+        phase = (
+            self.runner.phase
+            if self.mode == FlightMode.AUTO
+            else (None if self._manoeuvre is None else self._manoeuvre.phase)
+        )
         if not self._airborne:
             climbing = self.armed and phase == TAKEOFF
-            return mavlink.MAV_LANDED_STATE_TAKEOFF if climbing else (
-                mavlink.MAV_LANDED_STATE_ON_GROUND)
+            return (
+                mavlink.MAV_LANDED_STATE_TAKEOFF
+                if climbing
+                else (mavlink.MAV_LANDED_STATE_ON_GROUND)
+            )
         return phase if phase is not None else mavlink.MAV_LANDED_STATE_IN_AIR
 
     def limits(self) -> NavLimits:
@@ -159,8 +179,9 @@ class FlightController:
         """The periodic pre-arm report of a disarmed ArduCopter: every check failing now."""
         if self.armed or not self.flavour.needs_mission_start:
             return []
-        failures = arducopter_arming_failures(self.timeline, self.uptime(now),
-                                              self.mode in REQUIRES_POSITION)
+        failures = arducopter_arming_failures(
+            self.timeline, self.uptime(now), self.mode in REQUIRES_POSITION
+        )
         return [f"PreArm: {text}" for text in failures]
 
     def disarm(self, now: float, force: bool = False) -> int:
@@ -178,11 +199,18 @@ class FlightController:
         if mode == self.mode:
             return ACCEPTED
         if self._needs_position_for(mode) and not self.estimate_ready(now):
-            self._say(mavlink.MAV_SEVERITY_WARNING,
-                      f"Mode change to {self._mode_name(mode)} failed: requires position")
+            self._say(
+                mavlink.MAV_SEVERITY_WARNING,
+                f"Mode change to {self._mode_name(mode)} failed: requires position",
+            )
             return FAILED
-        if (mode == FlightMode.AUTO and self.flavour.needs_mission_start and self.armed
-                and not self._airborne and not self.runner.starts_with_takeoff()):
+        if (
+            mode == FlightMode.AUTO
+            and self.flavour.needs_mission_start
+            and self.armed
+            and not self._airborne
+            and not self.runner.starts_with_takeoff()
+        ):
             self._say(mavlink.MAV_SEVERITY_CRITICAL, "Auto: Missing Takeoff Cmd")
             return FAILED
         self._enter(mode, now)
@@ -294,8 +322,9 @@ class FlightController:
         if mode != FlightMode.AUTO:
             self.runner.stop()
         if mode == FlightMode.AUTO:
-            if self.armed and (self._airborne or not self.flavour.needs_mission_start
-                               or self._mission_start_given):
+            if self.armed and (
+                self._airborne or not self.flavour.needs_mission_start or self._mission_start_given
+            ):
                 self._start_auto(now)
         elif mode == FlightMode.TAKEOFF:
             if self.armed:
@@ -303,8 +332,15 @@ class FlightController:
         elif not self._airborne:
             return
         elif mode == FlightMode.RTL:
-            self._run(return_home(self.body, (self.home.east, self.home.north),
-                                  self.flavour.rtl_alt_m(self.params), self.limits()), now)
+            self._run(
+                return_home(
+                    self.body,
+                    (self.home.east, self.home.north),
+                    self.flavour.rtl_alt_m(self.params),
+                    self.limits(),
+                ),
+                now,
+            )
         elif mode == FlightMode.LAND:
             self._run(Land(self.limits()), now)
         else:

@@ -25,8 +25,9 @@ NAV_RTL = mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH
 NAV_LAND = mavlink.MAV_CMD_NAV_LAND
 NAV_TAKEOFF = mavlink.MAV_CMD_NAV_TAKEOFF
 DO_CHANGE_SPEED = mavlink.MAV_CMD_DO_CHANGE_SPEED
-NAV_COMMANDS = frozenset({NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME, NAV_RTL, NAV_LAND,
-                          NAV_TAKEOFF})
+NAV_COMMANDS = frozenset(
+    {NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME, NAV_RTL, NAV_LAND, NAV_TAKEOFF}
+)
 PASS_THROUGH_TARGETS = frozenset({NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME})
 
 
@@ -53,8 +54,11 @@ class MissionEvents(Protocol):
 class ItemPlacer:
     """Turns an item's coordinates into the fleet's local metres and home-relative altitude."""
 
-    def __init__(self, to_local: Callable[[float, float], tuple[float, float]],
-                 home_alt_amsl: Callable[[], float]) -> None:
+    def __init__(
+        self,
+        to_local: Callable[[float, float], tuple[float, float]],
+        home_alt_amsl: Callable[[], float],
+    ) -> None:
         self._to_local = to_local
         self._home_alt = home_alt_amsl
 
@@ -75,10 +79,17 @@ class ItemPlacer:
 class MissionRunner:
     """Executes items from `store.current` on; the flight controller calls `update` in AUTO."""
 
-    def __init__(self, store: MissionStore, body: Body, placer: ItemPlacer,
-                 limits: Callable[[], NavLimits], home_en: Callable[[], tuple[float, float]],
-                 rtl_alt: Callable[[], float], events: MissionEvents,
-                 takeoff_alt_if_missing: float | None = None) -> None:
+    def __init__(
+        self,
+        store: MissionStore,
+        body: Body,
+        placer: ItemPlacer,
+        limits: Callable[[], NavLimits],
+        home_en: Callable[[], tuple[float, float]],
+        rtl_alt: Callable[[], float],
+        events: MissionEvents,
+        takeoff_alt_if_missing: float | None = None,
+    ) -> None:
         self.store = store
         self._body = body
         self._placer = placer
@@ -237,8 +248,9 @@ class MissionRunner:
             return None
         return Climb(max(self._implicit_takeoff, alt))
 
-    def _corner_speed(self, item: MissionItem, items: list[MissionItem], east: float,
-                      north: float, radius: float) -> float:
+    def _corner_speed(
+        self, item: MissionItem, items: list[MissionItem], east: float, north: float, radius: float
+    ) -> float:
         """Speed to carry through this waypoint: full for a straight line, less for a sharp
         turn (the turn at the acceleration limit fits inside the acceptance radius), zero if
         the vehicle must stop (end of mission, landing, hold)."""
@@ -250,8 +262,9 @@ class MissionRunner:
         limits = self._limits()
         next_east, next_north = self._placer.position(following, self._body)
         here_east, here_north, _ = self._body.position
-        turn = _turn_angle((east - here_east, north - here_north),
-                           (next_east - east, next_north - north))
+        turn = _turn_angle(
+            (east - here_east, north - here_north), (next_east - east, next_north - north)
+        )
         if turn is None:
             return 0.0
         if turn < 1e-3:
@@ -260,7 +273,7 @@ class MissionRunner:
 
 
 def _next_nav(items: list[MissionItem], seq: int) -> MissionItem | None:
-    return next((item for item in items[seq + 1:] if item.command in NAV_COMMANDS), None)
+    return next((item for item in items[seq + 1 :] if item.command in NAV_COMMANDS), None)
 
 
 def _turn_angle(leg_in: tuple[float, float], leg_out: tuple[float, float]) -> float | None:

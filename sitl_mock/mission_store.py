@@ -18,20 +18,33 @@ from .codec import Message, Sender, mavlink
 from .flavour import Flavour
 from .mission_item import SUPPORTED_FRAMES, MissionItem, same_item
 
-MISSION, FENCE, RALLY, ALL = (mavlink.MAV_MISSION_TYPE_MISSION, mavlink.MAV_MISSION_TYPE_FENCE,
-                              mavlink.MAV_MISSION_TYPE_RALLY, mavlink.MAV_MISSION_TYPE_ALL)
+MISSION, FENCE, RALLY, ALL = (
+    mavlink.MAV_MISSION_TYPE_MISSION,
+    mavlink.MAV_MISSION_TYPE_FENCE,
+    mavlink.MAV_MISSION_TYPE_RALLY,
+    mavlink.MAV_MISSION_TYPE_ALL,
+)
 
 SUPPORTED_COMMANDS: dict[int, frozenset[int]] = {
-    MISSION: frozenset({
-        mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_UNLIM,
-        mavlink.MAV_CMD_NAV_LOITER_TIME, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-        mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_DO_CHANGE_SPEED,
-    }),
-    FENCE: frozenset({
-        mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
-        mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
-        mavlink.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION, mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
-    }),
+    MISSION: frozenset(
+        {
+            mavlink.MAV_CMD_NAV_WAYPOINT,
+            mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+            mavlink.MAV_CMD_NAV_LOITER_TIME,
+            mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+            mavlink.MAV_CMD_NAV_LAND,
+            mavlink.MAV_CMD_NAV_TAKEOFF,
+            mavlink.MAV_CMD_DO_CHANGE_SPEED,
+        }
+    ),
+    FENCE: frozenset(
+        {
+            mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+            mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+            mavlink.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+            mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
+        }
+    ),
     RALLY: frozenset({mavlink.MAV_CMD_NAV_RALLY_POINT}),
 }
 
@@ -70,8 +83,13 @@ class _Completed:
 class MissionStore:
     """Mission, fence and rally lists and the transfer state machine over them."""
 
-    def __init__(self, flavour: Flavour, out: Outbox, home_item: Callable[[], MissionItem],
-                 capacity: int = DEFAULT_CAPACITY) -> None:
+    def __init__(
+        self,
+        flavour: Flavour,
+        out: Outbox,
+        home_item: Callable[[], MissionItem],
+        capacity: int = DEFAULT_CAPACITY,
+    ) -> None:
         self.flavour = flavour
         self.capacity = capacity
         self.reject_at: str | None = None
@@ -214,8 +232,12 @@ class MissionStore:
 
     def _answer_stray_item(self, item: MissionItem, sender: Sender) -> None:
         done = self._completed
-        if (done is not None and done.sender == sender and done.mission_type == item.mission_type
-                and same_item(done.last_item, item)):
+        if (
+            done is not None
+            and done.sender == sender
+            and done.mission_type == item.mission_type
+            and same_item(done.last_item, item)
+        ):
             self._ack(sender, item.mission_type, mavlink.MAV_MISSION_ACCEPTED)
         else:
             self._ack(sender, item.mission_type, mavlink.MAV_MISSION_ERROR)
@@ -261,8 +283,11 @@ class MissionStore:
             self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_DENIED)
         else:
             count = len(self.items(msg.mission_type))
-            self._out.send(mavlink.MAVLink_mission_count_message(
-                sender.sysid, sender.compid, count, msg.mission_type))
+            self._out.send(
+                mavlink.MAVLink_mission_count_message(
+                    sender.sysid, sender.compid, count, msg.mission_type
+                )
+            )
 
     def _on_request(self, msg: Message, sender: Sender, now: float) -> None:
         if msg.mission_type not in self._lists:
@@ -312,12 +337,15 @@ class MissionStore:
         target = upload.sender
         if self.flavour.item_request_id == mavlink.MAVLINK_MSG_ID_MISSION_REQUEST:
             msg = mavlink.MAVLink_mission_request_message(
-                target.sysid, target.compid, upload.expected, upload.mission_type)
+                target.sysid, target.compid, upload.expected, upload.mission_type
+            )
         else:
             msg = mavlink.MAVLink_mission_request_int_message(
-                target.sysid, target.compid, upload.expected, upload.mission_type)
+                target.sysid, target.compid, upload.expected, upload.mission_type
+            )
         self._out.send(msg)
 
     def _ack(self, target: Sender, mission_type: int, result: int) -> None:
-        self._out.send(mavlink.MAVLink_mission_ack_message(
-            target.sysid, target.compid, result, mission_type))
+        self._out.send(
+            mavlink.MAVLink_mission_ack_message(target.sysid, target.compid, result, mission_type)
+        )

@@ -18,15 +18,23 @@ from .mission_item import MissionItem
 from .readiness import PREARM_PERIOD_S
 
 PX4_REACHED_REPEAT_S = 1.0
-NAV_COMMANDS = frozenset({
-    mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_UNLIM,
-    mavlink.MAV_CMD_NAV_LOITER_TIME, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-    mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_TAKEOFF,
-})
+NAV_COMMANDS = frozenset(
+    {
+        mavlink.MAV_CMD_NAV_WAYPOINT,
+        mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+        mavlink.MAV_CMD_NAV_LOITER_TIME,
+        mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+        mavlink.MAV_CMD_NAV_LAND,
+        mavlink.MAV_CMD_NAV_TAKEOFF,
+    }
+)
 ITEM_NAMES = {
-    mavlink.MAV_CMD_NAV_WAYPOINT: "WP", mavlink.MAV_CMD_NAV_LOITER_UNLIM: "LoitUnlim",
-    mavlink.MAV_CMD_NAV_LOITER_TIME: "LoitTime", mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: "RTL",
-    mavlink.MAV_CMD_NAV_LAND: "Land", mavlink.MAV_CMD_NAV_TAKEOFF: "Takeoff",
+    mavlink.MAV_CMD_NAV_WAYPOINT: "WP",
+    mavlink.MAV_CMD_NAV_LOITER_UNLIM: "LoitUnlim",
+    mavlink.MAV_CMD_NAV_LOITER_TIME: "LoitTime",
+    mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH: "RTL",
+    mavlink.MAV_CMD_NAV_LAND: "Land",
+    mavlink.MAV_CMD_NAV_TAKEOFF: "Takeoff",
     mavlink.MAV_CMD_DO_CHANGE_SPEED: "ChangeSpeed",
 }
 """`AP_Mission::Mission_Command::type()` names, as in "Mission: 3 WP"."""

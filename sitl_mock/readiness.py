@@ -48,34 +48,58 @@ class Timeline:
     """The EKF uses GPS: arming and flying in modes that need a position."""
 
     @classmethod
-    def arducopter(cls, position_s: float | None = None,
-                   estimate_s: float | None = None) -> Timeline:
+    def arducopter(
+        cls, position_s: float | None = None, estimate_s: float | None = None
+    ) -> Timeline:
         """The observed ArduCopter start-up, with the position steps brought forward."""
         estimate = ESTIMATE_S if estimate_s is None else estimate_s
         origin = min(ORIGIN_S if position_s is None else position_s, estimate)
         imu = min(IMU_S, estimate)
-        return cls(ready_s=READY_S, boot_status_s=BOOT_STATUS_S, ekf_s=min(EKF_S, imu),
-                   gps_fix_s=min(GPS_FIX_S, origin), origin_s=origin, imu_s=imu,
-                   ahrs_s=min(AHRS_S, estimate), estimate_s=estimate)
+        return cls(
+            ready_s=READY_S,
+            boot_status_s=BOOT_STATUS_S,
+            ekf_s=min(EKF_S, imu),
+            gps_fix_s=min(GPS_FIX_S, origin),
+            origin_s=origin,
+            imu_s=imu,
+            ahrs_s=min(AHRS_S, estimate),
+            estimate_s=estimate,
+        )
 
     @classmethod
     def immediate(cls, estimate_s: float) -> Timeline:
         """A vehicle with no boot phase whose position arrives at `estimate_s` (PX4 here)."""
-        return cls(ready_s=0.0, boot_status_s=0.0, ekf_s=0.0, gps_fix_s=estimate_s,
-                   origin_s=estimate_s, imu_s=0.0, ahrs_s=estimate_s, estimate_s=estimate_s)
+        return cls(
+            ready_s=0.0,
+            boot_status_s=0.0,
+            ekf_s=0.0,
+            gps_fix_s=estimate_s,
+            origin_s=estimate_s,
+            imu_s=0.0,
+            ahrs_s=estimate_s,
+            estimate_s=estimate_s,
+        )
 
 
-def arducopter_arming_failures(timeline: Timeline, uptime: float,
-                               needs_position: bool) -> list[str]:
+def arducopter_arming_failures(
+    timeline: Timeline, uptime: float, needs_position: bool
+) -> list[str]:
     """What ArduCopter's arming checks report at `uptime` (each becomes "Arm: <text>")."""
     if uptime < timeline.ready_s:
         return ["System not initialised"]
     if uptime < timeline.ekf_s:
         if needs_position:
-            return ["Need Alt Estimate", "Accels inconsistent", "EKF attitude is bad",
-                    "AHRS: waiting for home"]
-        return ["Accels inconsistent", "EKF attitude is bad",
-                "AHRS: not using configured AHRS type"]
+            return [
+                "Need Alt Estimate",
+                "Accels inconsistent",
+                "EKF attitude is bad",
+                "AHRS: waiting for home",
+            ]
+        return [
+            "Accels inconsistent",
+            "EKF attitude is bad",
+            "AHRS: not using configured AHRS type",
+        ]
     failures = []
     if uptime < timeline.imu_s:
         accels_until = (timeline.ekf_s + timeline.imu_s) / 2
@@ -87,8 +111,9 @@ def arducopter_arming_failures(timeline: Timeline, uptime: float,
     return failures
 
 
-def arducopter_mandatory_failures(timeline: Timeline, uptime: float,
-                                  needs_position: bool) -> list[str]:
+def arducopter_mandatory_failures(
+    timeline: Timeline, uptime: float, needs_position: bool
+) -> list[str]:
     """What a forced arm (param2 21196) still checks: initialised, and the position for
     modes that need one (`AP_Arming_Copter::mandatory_checks`)."""
     if uptime < timeline.ready_s:

@@ -17,7 +17,6 @@ class Sensors(NamedTuple):
 NO_SENSORS = Sensors(0, 0, 0)
 
 
-
 @dataclass(frozen=True)
 class VehicleState:
     sysid: int

@@ -25,8 +25,10 @@ DEFAULT_RATES_HZ: dict[int, float] = {
 
 STREAM_GROUPS: dict[int, tuple[int, ...]] = {
     S.MAV_DATA_STREAM_EXTENDED_STATUS: (
-        S.MAVLINK_MSG_ID_SYS_STATUS, S.MAVLINK_MSG_ID_GPS_RAW_INT,
-        S.MAVLINK_MSG_ID_MISSION_CURRENT, S.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+        S.MAVLINK_MSG_ID_SYS_STATUS,
+        S.MAVLINK_MSG_ID_GPS_RAW_INT,
+        S.MAVLINK_MSG_ID_MISSION_CURRENT,
+        S.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
     ),
     S.MAV_DATA_STREAM_POSITION: (S.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,),
     S.MAV_DATA_STREAM_EXTRA1: (S.MAVLINK_MSG_ID_ATTITUDE,),
@@ -44,8 +46,12 @@ first after one interval). HOME_POSITION and GPS_GLOBAL_ORIGIN come on events in
 class TelemetrySchedule:
     """Per-message intervals and next due times; `due` returns what to send now."""
 
-    def __init__(self, stream_by_default: bool, streamable: frozenset[int],
-                 unasked_s: dict[int, float] | None = None) -> None:
+    def __init__(
+        self,
+        stream_by_default: bool,
+        streamable: frozenset[int],
+        unasked_s: dict[int, float] | None = None,
+    ) -> None:
         self._streamable = streamable
         self._unasked = dict(unasked_s or {})
         self._intervals: dict[int, float] = {}
@@ -94,8 +100,11 @@ class TelemetrySchedule:
         return True
 
     def request_data_stream(self, stream_id: int, rate_hz: float, start: bool, now: float) -> None:
-        groups = STREAM_GROUPS.values() if stream_id == S.MAV_DATA_STREAM_ALL else (
-            [STREAM_GROUPS[stream_id]] if stream_id in STREAM_GROUPS else [])
+        groups = (
+            STREAM_GROUPS.values()
+            if stream_id == S.MAV_DATA_STREAM_ALL
+            else ([STREAM_GROUPS[stream_id]] if stream_id in STREAM_GROUPS else [])
+        )
         for group in groups:
             for msg_id in group:
                 on = start and rate_hz > 0

@@ -40,7 +40,8 @@ class UdpEndpoint(asyncio.DatagramProtocol):
     async def open(cls, host: str, port: int, on_packet: PacketHandler) -> UdpEndpoint:
         loop = asyncio.get_running_loop()
         _, endpoint = await loop.create_datagram_endpoint(
-            lambda: cls(on_packet), local_addr=(host, port))
+            lambda: cls(on_packet), local_addr=(host, port)
+        )
         return endpoint
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
@@ -135,8 +136,9 @@ class UdpOutput(asyncio.DatagramProtocol):
     @classmethod
     async def open(cls, host: str, port: int) -> UdpOutput:
         loop = asyncio.get_running_loop()
-        _, output = await loop.create_datagram_endpoint(lambda: cls(host, port),
-                                                        remote_addr=(host, port))
+        _, output = await loop.create_datagram_endpoint(
+            lambda: cls(host, port), remote_addr=(host, port)
+        )
         return output
 
     def subscribe(self, on_packet: PacketHandler) -> None:

@@ -43,10 +43,18 @@ Geodetic = Callable[[int], tuple[float, float]]
 class Vehicle:
     """Ties one vehicle's protocol handlers, flight controller and links together."""
 
-    def __init__(self, config: VehicleConfig, body: Body, home_en: tuple[float, float],
-                 to_local: Callable[[float, float], tuple[float, float]], geodetic: Geodetic,
-                 clock: Callable[[], float], rng: np.random.Generator,
-                 stream_by_default: bool, wall: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        config: VehicleConfig,
+        body: Body,
+        home_en: tuple[float, float],
+        to_local: Callable[[float, float], tuple[float, float]],
+        geodetic: Geodetic,
+        clock: Callable[[], float],
+        rng: np.random.Generator,
+        stream_by_default: bool,
+        wall: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.config = config
         self.sysid = config.sysid
         self.flavour = config.flavour
@@ -69,13 +77,30 @@ class Vehicle:
         home = Home(lat, lon, alt, *home_en)
         self.store = MissionStore(self.flavour, self, self._home_item, config.mission_capacity)
         self.notices = Notices(self.flavour, self.send, self.say)
-        self.flight = FlightController(self.flavour, body, self.params, self.store, home,
-                                       to_local, self, self.say, config.timeline())
+        self.flight = FlightController(
+            self.flavour,
+            body,
+            self.params,
+            self.store,
+            home,
+            to_local,
+            self,
+            self.say,
+            config.timeline(),
+        )
         self.schedule = TelemetrySchedule(
-            self._stream_by_default, messages.streamable(self.flavour),
-            UNASKED_ARDUPILOT_S if self.flavour.sends_unasked else None)
-        self.commands = CommandHandler(self.flight, self.store, self.schedule,
-                                       self.current_changed, lambda: self.faults, self.say)
+            self._stream_by_default,
+            messages.streamable(self.flavour),
+            UNASKED_ARDUPILOT_S if self.flavour.sends_unasked else None,
+        )
+        self.commands = CommandHandler(
+            self.flight,
+            self.store,
+            self.schedule,
+            self.current_changed,
+            lambda: self.faults,
+            self.say,
+        )
         self.boot = BootSequence(self.flight, self.store, self.say, self._send_home)
         self.store.on_mission_changed = self._mission_changed
         self.store.on_current_changed = self.current_changed
@@ -212,35 +237,57 @@ class Vehicle:
         flight, flavour = self.flight, self.flavour
         lat, lon = self._geodetic(self._body.index)
         v_east, v_north, v_up = self._body.velocity
-        heading = math.degrees(math.atan2(v_east, v_north)) % 360 if math.hypot(
-            v_east, v_north) > 0.5 else 0.0
+        heading = (
+            math.degrees(math.atan2(v_east, v_north)) % 360
+            if math.hypot(v_east, v_north) > 0.5
+            else 0.0
+        )
         home = flight.home
         return VehicleState(
-            sysid=self.sysid, t=now, uptime=flight.uptime(now), lat=lat, lon=lon,
-            alt=self._body.alt, alt_amsl=home.alt_amsl + self._body.alt,
-            velocity_ned=(v_north, v_east, -v_up), heading_deg=heading, armed=flight.armed,
-            mode=flight.mode.value, custom_mode=flavour.modes.custom_mode(flight.mode),
+            sysid=self.sysid,
+            t=now,
+            uptime=flight.uptime(now),
+            lat=lat,
+            lon=lon,
+            alt=self._body.alt,
+            alt_amsl=home.alt_amsl + self._body.alt,
+            velocity_ned=(v_north, v_east, -v_up),
+            heading_deg=heading,
+            armed=flight.armed,
+            mode=flight.mode.value,
+            custom_mode=flavour.modes.custom_mode(flight.mode),
             base_mode=flavour.modes.base_mode(flight.mode, flight.armed),
-            system_status=self._system_status(now), landed_state=flight.landed_state,
-            mission_seq=self.store.reported_current, mission_total=self.store.total,
+            system_status=self._system_status(now),
+            landed_state=flight.landed_state,
+            mission_seq=self.store.reported_current,
+            mission_total=self.store.total,
             mission_state=int(flight.runner.state),
-            home=(home.lat, home.lon, home.alt_amsl), estimate_ready=flight.estimate_ready(now),
-            position_known=flight.position_known(now), home_set=flight.home_set(now),
-            sensors=self.boot.sensors(now), rejected_packets=self.rejected_packets,
+            home=(home.lat, home.lon, home.alt_amsl),
+            estimate_ready=flight.estimate_ready(now),
+            position_known=flight.position_known(now),
+            home_set=flight.home_set(now),
+            sensors=self.boot.sensors(now),
+            rejected_packets=self.rejected_packets,
         )
 
     def _system_status(self, now: float) -> int:
         if self.flight.uptime(now) < self.flight.timeline.boot_status_s:
             return mavlink.MAV_STATE_BOOT
         flying = self.flight.armed and (
-            self.flight.landed_state != mavlink.MAV_LANDED_STATE_ON_GROUND)
+            self.flight.landed_state != mavlink.MAV_LANDED_STATE_ON_GROUND
+        )
         return mavlink.MAV_STATE_ACTIVE if flying else mavlink.MAV_STATE_STANDBY
 
     def _home_item(self) -> MissionItem:
         home = self.flight.home
-        return MissionItem(seq=0, frame=mavlink.MAV_FRAME_GLOBAL,
-                           command=mavlink.MAV_CMD_NAV_WAYPOINT, x=round(home.lat * 1e7),
-                           y=round(home.lon * 1e7), z=home.alt_amsl)
+        return MissionItem(
+            seq=0,
+            frame=mavlink.MAV_FRAME_GLOBAL,
+            command=mavlink.MAV_CMD_NAV_WAYPOINT,
+            x=round(home.lat * 1e7),
+            y=round(home.lon * 1e7),
+            z=home.alt_amsl,
+        )
 
     # -- inbound messages -----------------------------------------------------------------
 
@@ -277,20 +324,23 @@ class Vehicle:
             result = self.commands.set_mode(msg.base_mode, msg.custom_mode, now)
         finally:
             texts, self._held_texts = self._held_texts, None
-        self.send(messages.command_ack(mavlink.MAVLINK_MSG_ID_SET_MODE, result, sender.sysid,
-                                       sender.compid))
+        self.send(
+            messages.command_ack(
+                mavlink.MAVLINK_MSG_ID_SET_MODE, result, sender.sysid, sender.compid
+            )
+        )
         for text in texts:
             self.send(text)
 
     def _on_request_data_stream(self, msg: Message, sender: Sender, now: float) -> None:
-        self.schedule.request_data_stream(msg.req_stream_id, msg.req_message_rate,
-                                          bool(msg.start_stop), now)
+        self.schedule.request_data_stream(
+            msg.req_stream_id, msg.req_message_rate, bool(msg.start_stop), now
+        )
 
     def _on_timesync(self, msg: Message, sender: Sender, now: float) -> None:
         """Answer a ground station's TIMESYNC request (tc1 0) with our clock in tc1."""
         if msg.tc1 == 0:
-            self.send(mavlink.MAVLink_timesync_message(messages.nanoseconds(self.state()),
-                                                       msg.ts1))
+            self.send(mavlink.MAVLink_timesync_message(messages.nanoseconds(self.state()), msg.ts1))
 
     def _on_param_request_list(self, msg: Message, sender: Sender, now: float) -> None:
         for value in self.params.all_messages():

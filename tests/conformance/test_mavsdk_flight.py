@@ -82,12 +82,15 @@ async def connect(sim: Simulator, sdk: mavsdk.Mavsdk, autopilot: str) -> Vehicle
     assert await asyncio.to_thread(sim.wait_until, booted, WAIT_S)
     telemetry = TelemetryAsync(system)
     if autopilot == "ardupilot":  # streams nothing until asked, as ArduCopter
-        for set_rate in (telemetry.set_rate_position, telemetry.set_rate_in_air,
-                         telemetry.set_rate_landed_state, telemetry.set_rate_home,
-                         telemetry.set_rate_health):
+        for set_rate in (
+            telemetry.set_rate_position,
+            telemetry.set_rate_in_air,
+            telemetry.set_rate_landed_state,
+            telemetry.set_rate_home,
+            telemetry.set_rate_health,
+        ):
             await set_rate(TELEMETRY_HZ)
-    return Vehicle(autopilot, sim, system, telemetry, MissionRawAsync(system),
-                   ActionAsync(system))
+    return Vehicle(autopilot, sim, system, telemetry, MissionRawAsync(system), ActionAsync(system))
 
 
 @contextlib.asynccontextmanager
@@ -97,7 +100,8 @@ async def simulated(autopilot: str, transport: str) -> AsyncIterator[Vehicle]:
     sim = Simulator([config], speedup=SPEEDUP, seed=0)
     with sim.running():
         sdk_config = mavsdk.Configuration.create_with_component_type(
-            mavsdk.ComponentType.GROUND_STATION)
+            mavsdk.ComponentType.GROUND_STATION
+        )
         async with mavsdk.Mavsdk(sdk_config) as sdk:
             yield await connect(sim, sdk, autopilot)
 
@@ -108,8 +112,9 @@ async def vehicle(request: pytest.FixtureRequest) -> AsyncIterator[Vehicle]:
         yield connected
 
 
-async def first(stream: AsyncIterator[T], accept: Callable[[T], bool] = lambda _: True,
-                timeout: float = WAIT_S) -> T:
+async def first(
+    stream: AsyncIterator[T], accept: Callable[[T], bool] = lambda _: True, timeout: float = WAIT_S
+) -> T:
     """The first value of a MAVSDK subscription that `accept`s, within `timeout` seconds."""
     async with contextlib.aclosing(stream), asyncio.timeout(timeout):
         async for value in stream:
@@ -143,23 +148,33 @@ def waypoint_e7(east: float, north: float) -> tuple[int, int]:
     return round(lat * 1e7), round(lon * 1e7)
 
 
-def item(seq: int, command: int, frame: int = GLOBAL_RELATIVE_ALT_INT, x: int = 0, y: int = 0,
-         z: float = ALT_M) -> MissionItem:
-    return MissionItem(seq=seq, frame=frame, command=command, current=int(seq == 0),
-                       autocontinue=1, x=x, y=y, z=z)
+def item(
+    seq: int,
+    command: int,
+    frame: int = GLOBAL_RELATIVE_ALT_INT,
+    x: int = 0,
+    y: int = 0,
+    z: float = ALT_M,
+) -> MissionItem:
+    return MissionItem(
+        seq=seq, frame=frame, command=command, current=int(seq == 0), autocontinue=1, x=x, y=y, z=z
+    )
 
 
 def square_mission(autopilot: str) -> list[MissionItem]:
     """[Home,] take-off, three corners, land where it stops (seq numbered from 0)."""
     home_x, home_y = round(HOME[0] * 1e7), round(HOME[1] * 1e7)
     commands: list[tuple] = [(NAV_WAYPOINT, GLOBAL, home_x, home_y, HOME[2])] * (
-        autopilot == "ardupilot")
+        autopilot == "ardupilot"
+    )
     commands.append((NAV_TAKEOFF, GLOBAL_RELATIVE_ALT_INT, 0, 0, ALT_M))
-    commands += [(NAV_WAYPOINT, GLOBAL_RELATIVE_ALT_INT, *waypoint_e7(e, n), ALT_M)
-                 for e, n in WAYPOINTS_EN]
+    commands += [
+        (NAV_WAYPOINT, GLOBAL_RELATIVE_ALT_INT, *waypoint_e7(e, n), ALT_M) for e, n in WAYPOINTS_EN
+    ]
     commands.append((NAV_LAND, GLOBAL_RELATIVE_ALT_INT, 0, 0, 0.0))
-    return [item(seq, command, frame, x, y, z)
-            for seq, (command, frame, x, y, z) in enumerate(commands)]
+    return [
+        item(seq, command, frame, x, y, z) for seq, (command, frame, x, y, z) in enumerate(commands)
+    ]
 
 
 def as_stored(autopilot: str, mission: list[MissionItem]) -> list[MissionItem]:
@@ -171,21 +186,44 @@ def as_stored(autopilot: str, mission: list[MissionItem]) -> list[MissionItem]:
     for sent in mission:
         frame = 3 if sent.frame == GLOBAL_RELATIVE_ALT_INT else sent.frame
         param4 = 1.0 if sent.command == NAV_LAND else sent.param4
-        stored.append(MissionItem(seq=sent.seq, frame=frame, command=sent.command,
-                                  current=sent.current, autocontinue=sent.autocontinue,
-                                  param1=sent.param1, param2=sent.param2, param3=sent.param3,
-                                  param4=param4, x=sent.x, y=sent.y, z=sent.z,
-                                  mission_type=sent.mission_type))
+        stored.append(
+            MissionItem(
+                seq=sent.seq,
+                frame=frame,
+                command=sent.command,
+                current=sent.current,
+                autocontinue=sent.autocontinue,
+                param1=sent.param1,
+                param2=sent.param2,
+                param3=sent.param3,
+                param4=param4,
+                x=sent.x,
+                y=sent.y,
+                z=sent.z,
+                mission_type=sent.mission_type,
+            )
+        )
     return stored
 
 
 def as_tuple(mission_item: MissionItem) -> tuple:
     """What must survive a round trip (float32 params and z, NaN-safe)."""
-    floats = (mission_item.param1, mission_item.param2, mission_item.param3,
-              mission_item.param4, mission_item.z)
-    return (mission_item.seq, mission_item.frame, mission_item.command,
-            mission_item.autocontinue, mission_item.x, mission_item.y,
-            *("nan" if math.isnan(f) else round(f, 3) for f in floats))
+    floats = (
+        mission_item.param1,
+        mission_item.param2,
+        mission_item.param3,
+        mission_item.param4,
+        mission_item.z,
+    )
+    return (
+        mission_item.seq,
+        mission_item.frame,
+        mission_item.command,
+        mission_item.autocontinue,
+        mission_item.x,
+        mission_item.y,
+        *("nan" if math.isnan(f) else round(f, 3) for f in floats),
+    )
 
 
 def distance_m(lat: float, lon: float, east: float, north: float) -> float:
@@ -204,10 +242,8 @@ async def test_connects_and_reads_telemetry(autopilot: str, transport: str) -> N
     async with simulated(autopilot, transport) as v:
         assert int(await v.system.autopilot_type()) == AUTOPILOT_ENUM[autopilot]
         assert await first(v.telemetry.subscribe_flight_mode()) == BOOT_MODE[autopilot]
-        position = await first(v.telemetry.subscribe_position(),
-                               lambda p: p.latitude_deg != 0.0)
-        assert (position.latitude_deg, position.longitude_deg) == pytest.approx(HOME[:2],
-                                                                                 abs=1e-6)
+        position = await first(v.telemetry.subscribe_position(), lambda p: p.latitude_deg != 0.0)
+        assert (position.latitude_deg, position.longitude_deg) == pytest.approx(HOME[:2], abs=1e-6)
         assert position.absolute_altitude_m == pytest.approx(HOME[2], abs=0.5)
         assert position.relative_altitude_m == pytest.approx(0.0, abs=0.5)
         await first(v.telemetry.subscribe_health(), lambda h: all(vars(h).values()))
@@ -223,8 +259,9 @@ async def test_mission_upload_download_clear(vehicle: Vehicle) -> None:
     sent = square_mission(vehicle.autopilot)
     await vehicle.mission.upload_mission(sent)
     received = await vehicle.mission.download_mission()
-    assert [as_tuple(i) for i in received] == [as_tuple(i) for i in as_stored(
-        vehicle.autopilot, sent)]
+    assert [as_tuple(i) for i in received] == [
+        as_tuple(i) for i in as_stored(vehicle.autopilot, sent)
+    ]
     assert vehicle.sim.mission(1)[-1].command == NAV_LAND
     await vehicle.mission.clear_mission()
     left = await vehicle.mission.download_mission()
@@ -271,8 +308,9 @@ async def test_flies_the_mission_to_the_end(vehicle: Vehicle) -> None:
     following = asyncio.create_task(follow_to_end(vehicle, len(mission)))
     try:
         await arm_and_start(vehicle)
-        assert await first(vehicle.telemetry.subscribe_flight_mode(),
-                           lambda mode: mode == FlightMode.MISSION)
+        assert await first(
+            vehicle.telemetry.subscribe_flight_mode(), lambda mode: mode == FlightMode.MISSION
+        )
         seen = await following
     finally:
         following.cancel()
@@ -300,8 +338,11 @@ async def test_leaves_the_mission_mid_flight(vehicle: Vehicle, command: str) -> 
     await vehicle.mission.upload_mission(square_mission(vehicle.autopilot))
     first_corner = 2 if vehicle.autopilot == "ardupilot" else 1
     await arm_and_start(vehicle)
-    await first(vehicle.mission.subscribe_mission_progress(), lambda p: p.current > first_corner,
-                FLIGHT_S + READY_S)
+    await first(
+        vehicle.mission.subscribe_mission_progress(),
+        lambda p: p.current > first_corner,
+        FLIGHT_S + READY_S,
+    )
     await getattr(vehicle.action, command)()
     there = vehicle.sim.state(1)
     mode = FlightMode.RETURN_TO_LAUNCH if command == "return_to_launch" else FlightMode.LAND

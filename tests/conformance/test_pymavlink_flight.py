@@ -49,24 +49,27 @@ def upload(link, items) -> int:
     link.mav.mission_count_send(1, 1, len(items), 0)
     deadline = time.monotonic() + 5.0
     while time.monotonic() < deadline:
-        msg = link.recv_match(type=["MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"],
-                              blocking=True, timeout=1.0)
+        msg = link.recv_match(
+            type=["MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"],
+            blocking=True,
+            timeout=1.0,
+        )
         if msg is None:
             continue
         if msg.get_type() == "MISSION_ACK":
             return msg.type
         command, x, y, z, p1 = items[msg.seq]
         frame = 0 if msg.seq == 0 and command == 16 and z == HOME[2] else 6
-        link.mav.mission_item_int_send(1, 1, msg.seq, frame, command, 0, 1, p1, 0, 0, 0, x, y, z,
-                                       0)
+        link.mav.mission_item_int_send(1, 1, msg.seq, frame, command, 0, 1, p1, 0, 0, 0, x, y, z, 0)
     return -1
 
 
 def command(link, cmd: int, *params: float) -> int:
     padded = [*params, *[0.0] * (7 - len(params))]
     link.mav.command_long_send(1, 1, cmd, 0, *padded)
-    ack = link.recv_match(type="COMMAND_ACK", blocking=True, timeout=2.0,
-                          condition=f"COMMAND_ACK.command=={cmd}")
+    ack = link.recv_match(
+        type="COMMAND_ACK", blocking=True, timeout=2.0, condition=f"COMMAND_ACK.command=={cmd}"
+    )
     return -1 if ack is None else ack.result
 
 
@@ -85,8 +88,15 @@ def test_square_mission_is_flown_and_landed_at_the_last_waypoint(autopilot):
         link = mavutil.mavlink_connection(sim.connection_string(1), source_system=255)
         try:
             link.mav.heartbeat_send(6, 8, 0, 0, 0)
-            assert link.recv_match(type="HEARTBEAT", blocking=True, timeout=5.0,
-                                   condition="HEARTBEAT.system_status!=1") is not None
+            assert (
+                link.recv_match(
+                    type="HEARTBEAT",
+                    blocking=True,
+                    timeout=5.0,
+                    condition="HEARTBEAT.system_status!=1",
+                )
+                is not None
+            )
             assert upload(link, square_mission(with_home=ardupilot)) == 0
             assert sim.wait_until(lambda: sim.state(1).estimate_ready, 10.0)
             if ardupilot:  # GUIDED -> arm -> AUTO -> MISSION_START, as ArduCopter needs
@@ -107,8 +117,9 @@ def test_square_mission_is_flown_and_landed_at_the_last_waypoint(autopilot):
                 if msg is not None:
                     reached.append(msg.seq)
             assert not sim.state(1).armed  # landed and disarmed: the end of the flight
-            while (msg := link.recv_match(type="MISSION_ITEM_REACHED", blocking=True,
-                                          timeout=0.2)) is not None:
+            while (
+                msg := link.recv_match(type="MISSION_ITEM_REACHED", blocking=True, timeout=0.2)
+            ) is not None:
                 reached.append(msg.seq)
         finally:
             link.close()
@@ -132,8 +143,7 @@ def test_square_mission_is_flown_and_landed_at_the_last_waypoint(autopilot):
 
 def test_two_vehicles_separation_is_recorded():
     homes = [HOME, (*pymap3d.enu2geodetic(30.0, 0.0, 0.0, *HOME)[:2], HOME[2])]
-    sim = Simulator([VehicleConfig(sysid=i + 1, home=h) for i, h in enumerate(homes)],
-                    speedup=20.0)
+    sim = Simulator([VehicleConfig(sysid=i + 1, home=h) for i, h in enumerate(homes)], speedup=20.0)
     with sim.running():
         assert sim.wait_until(lambda: sim.state(2).estimate_ready, 5.0)
         for sysid in (1, 2):
@@ -162,9 +172,22 @@ def test_mvo_gcs_sitl_prints_connection_strings_and_exits_cleanly_on_sigint(tmp_
     exe = Path(sys.executable).parent / "mvo-gcs"
     log = tmp_path / "track.jsonl"
     proc = subprocess.Popen(
-        [str(exe), "sitl", "--vehicles", "3", "--base-port", "0", "--speedup", "10",
-         "--track-log", str(log)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        [
+            str(exe),
+            "sitl",
+            "--vehicles",
+            "3",
+            "--base-port",
+            "0",
+            "--speedup",
+            "10",
+            "--track-log",
+            str(log),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         lines = [proc.stdout.readline().strip() for _ in range(3)]
         assert [line.split(":")[0] for line in lines] == ["vehicle 1", "vehicle 2", "vehicle 3"]

@@ -41,8 +41,16 @@ def waypoints(n: int, first_is_home: bool = True) -> list[Item]:
     items = [home] if first_is_home else []
     items.append(Item(22, z=15.0))
     for k in range(n - len(items)):
-        items.append(Item(16, x=473977420 + 100 * (k + 1), y=85455940 + 50 * k, z=20.0 + k % 7,
-                          p1=k % 3, p2=k % 2))
+        items.append(
+            Item(
+                16,
+                x=473977420 + 100 * (k + 1),
+                y=85455940 + 50 * k,
+                z=20.0 + k % 7,
+                p1=k % 3,
+                p2=k % 2,
+            )
+        )
     return items
 
 
@@ -62,8 +70,12 @@ class Gcs:
         while self.link.recv_match(blocking=False) is not None:
             pass
 
-    def recv(self, types: str | list[str], timeout: float = 2.0,
-             where: Callable[[object], bool] = lambda m: True):
+    def recv(
+        self,
+        types: str | list[str],
+        timeout: float = 2.0,
+        where: Callable[[object], bool] = lambda m: True,
+    ):
         deadline = time.monotonic() + timeout
         while (remaining := deadline - time.monotonic()) > 0:
             msg = self.link.recv_match(type=types, blocking=True, timeout=remaining)
@@ -86,19 +98,37 @@ class Gcs:
 
     def send_item(self, seq: int, item: Item, mission_type: int = 0) -> None:
         self.link.mav.mission_item_int_send(
-            self.target, 1, seq, item.frame, item.command, 0, 1, item.p1, item.p2, 0, 0,
-            item.x, item.y, item.z, mission_type)
+            self.target,
+            1,
+            seq,
+            item.frame,
+            item.command,
+            0,
+            1,
+            item.p1,
+            item.p2,
+            0,
+            0,
+            item.x,
+            item.y,
+            item.z,
+            mission_type,
+        )
 
-    def upload(self, items: list[Item], mission_type: int = 0, timeout: float = 10.0,
-               retry_s: float = 0.5) -> int | None:
+    def upload(
+        self, items: list[Item], mission_type: int = 0, timeout: float = 10.0, retry_s: float = 0.5
+    ) -> int | None:
         """Answer MISSION_REQUEST and MISSION_REQUEST_INT; resend on silence; final ACK type."""
         self.drain()
         self.link.mav.mission_count_send(self.target, 1, len(items), mission_type)
         last: int | None = None
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            msg = self.recv(["MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"], retry_s,
-                            where=lambda m: m.mission_type == mission_type)
+            msg = self.recv(
+                ["MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"],
+                retry_s,
+                where=lambda m: m.mission_type == mission_type,
+            )
             if msg is None:
                 if last is None:
                     self.link.mav.mission_count_send(self.target, 1, len(items), mission_type)
@@ -113,8 +143,13 @@ class Gcs:
                 last = msg.seq
         return None
 
-    def download(self, mission_type: int = 0, timeout: float = 10.0, retry_s: float = 0.5,
-                 legacy: bool = False) -> list | None:
+    def download(
+        self,
+        mission_type: int = 0,
+        timeout: float = 10.0,
+        retry_s: float = 0.5,
+        legacy: bool = False,
+    ) -> list | None:
         self.drain()
         count = None
         deadline = time.monotonic() + timeout
@@ -125,8 +160,9 @@ class Gcs:
             return None
         items = []
         kind = "MISSION_ITEM" if legacy else "MISSION_ITEM_INT"
-        request = (self.link.mav.mission_request_send if legacy
-                   else self.link.mav.mission_request_int_send)
+        request = (
+            self.link.mav.mission_request_send if legacy else self.link.mav.mission_request_int_send
+        )
         while len(items) < count.count and time.monotonic() < deadline:
             seq = len(items)
             request(self.target, 1, seq, mission_type)
@@ -147,8 +183,11 @@ def as_ardupilot_stores(items: list[Item]) -> list[Item]:
     seconds, altitudes whole centimetres."""
     stored = []
     for item in items:
-        frame = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT if item.frame == (
-            mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT) else item.frame
+        frame = (
+            mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+            if item.frame == (mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT)
+            else item.frame
+        )
         p2 = 0.0 if item.command == mavlink.MAV_CMD_NAV_WAYPOINT else item.p2
         stored.append(item._replace(frame=frame, p1=float(int(item.p1)), p2=p2))
     return stored
@@ -163,13 +202,24 @@ def wait_booted(gcs: Gcs, timeout: float = 5.0) -> bool:
 def make_sim() -> Iterator[Callable[..., tuple[Simulator, Gcs]]]:
     stack: list[tuple[object, Gcs]] = []
 
-    def start(autopilot: str = "ardupilot", transport: str = "udp", speedup: float = SPEEDUP,
-              faults: Faults | None = None, booted: bool = True,
-              wall_clock: Callable[[], float] = time.monotonic,
-              **config) -> tuple[Simulator, Gcs]:
+    def start(
+        autopilot: str = "ardupilot",
+        transport: str = "udp",
+        speedup: float = SPEEDUP,
+        faults: Faults | None = None,
+        booted: bool = True,
+        wall_clock: Callable[[], float] = time.monotonic,
+        **config,
+    ) -> tuple[Simulator, Gcs]:
         config.setdefault("estimate_delay_s", QUICK_ESTIMATE_S)
-        vehicle = VehicleConfig(sysid=1, home=HOME, autopilot=autopilot, transport=transport,
-                                faults=faults or Faults(), **config)
+        vehicle = VehicleConfig(
+            sysid=1,
+            home=HOME,
+            autopilot=autopilot,
+            transport=transport,
+            faults=faults or Faults(),
+            **config,
+        )
         sim = Simulator([vehicle], speedup=speedup, seed=1, wall_clock=wall_clock)
         running = sim.running()
         running.__enter__()
@@ -191,6 +241,7 @@ FLAVOURS = [("ardupilot", "udp"), ("ardupilot", "tcp"), ("px4", "udp"), ("px4", 
 
 # -- the mission protocol -----------------------------------------------------------------
 
+
 @pytest.mark.parametrize(("autopilot", "transport"), FLAVOURS)
 def test_upload_download_round_trip(make_sim, autopilot, transport):
     sim, gcs = make_sim(autopilot, transport)
@@ -208,7 +259,7 @@ def test_upload_download_round_trip(make_sim, autopilot, transport):
     else:
         assert downloaded == items
     legacy = gcs.download(legacy=True)
-    legacy_x = [m.x * 1e7 for m in legacy[-len(items):]]
+    legacy_x = [m.x * 1e7 for m in legacy[-len(items) :]]
     assert legacy_x == pytest.approx([i.x for i in items], abs=100)  # float32 degrees
     assert len(sim.mission(1)) == len(items) + ardupilot
 
@@ -234,14 +285,16 @@ def test_set_current_by_message_and_by_command(make_sim):
     gcs.link.mav.mission_set_current_send(1, 1, 3)
     current = gcs.recv("MISSION_CURRENT")
     assert (current.seq, current.total, current.mission_state) == (3, 5, 2)
-    gcs.link.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, 0, 4, 0, 0, 0,
-                                   0, 0, 0)
+    gcs.link.mav.command_long_send(
+        1, 1, mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, 0, 4, 0, 0, 0, 0, 0, 0
+    )
     seen = gcs.collect(0.3, ["COMMAND_ACK", "MISSION_CURRENT"])
     assert [m.result for m in seen if m.get_type() == "COMMAND_ACK"] == [0]
     assert [m.seq for m in seen if m.get_type() == "MISSION_CURRENT"] == [4]
     assert sim.state(1).mission_seq == 4
     assert gcs.command(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, 9).result == (
-        mavlink.MAV_RESULT_FAILED)
+        mavlink.MAV_RESULT_FAILED
+    )
 
 
 def test_too_many_items_is_no_space(make_sim):
@@ -250,11 +303,16 @@ def test_too_many_items_is_no_space(make_sim):
     assert gcs.upload(waypoints(50)) == mavlink.MAV_MISSION_ACCEPTED
 
 
-@pytest.mark.parametrize(("bad", "result"), [
-    (Item(16, mavlink.MAV_FRAME_LOCAL_NED, 1, 1, 5.0), mavlink.MAV_MISSION_UNSUPPORTED_FRAME),
-    (Item(mavlink.MAV_CMD_DO_SET_SERVO, mavlink.MAV_FRAME_MISSION),
-     mavlink.MAV_MISSION_UNSUPPORTED),
-])
+@pytest.mark.parametrize(
+    ("bad", "result"),
+    [
+        (Item(16, mavlink.MAV_FRAME_LOCAL_NED, 1, 1, 5.0), mavlink.MAV_MISSION_UNSUPPORTED_FRAME),
+        (
+            Item(mavlink.MAV_CMD_DO_SET_SERVO, mavlink.MAV_FRAME_MISSION),
+            mavlink.MAV_MISSION_UNSUPPORTED,
+        ),
+    ],
+)
 def test_unsupported_item_is_refused_and_the_previous_mission_stays(make_sim, bad, result):
     _sim, gcs = make_sim()
     good = waypoints(4)
@@ -359,6 +417,7 @@ def test_fence_and_rally_missions_are_kept_apart(make_sim):
 
 # -- commands, parameters, telemetry ------------------------------------------------------
 
+
 def arm_attempt(gcs: Gcs, force: bool = False) -> tuple[list[int], list[str]]:
     """One arming command: the COMMAND_ACK results and every STATUSTEXT that came with it."""
     gcs.drain()
@@ -369,9 +428,13 @@ def arm_attempt(gcs: Gcs, force: bool = False) -> tuple[list[int], list[str]]:
 
 
 ARDUCOPTER_ARM_TEXTS = {
-    "Arm: Accels inconsistent", "Arm: Gyros inconsistent", "Arm: EKF attitude is bad",
-    "Arm: AHRS: not using configured AHRS type", "Arm: Need Alt Estimate",
-    "Arm: AHRS: waiting for home", "Arm: Need Position Estimate",
+    "Arm: Accels inconsistent",
+    "Arm: Gyros inconsistent",
+    "Arm: EKF attitude is bad",
+    "Arm: AHRS: not using configured AHRS type",
+    "Arm: Need Alt Estimate",
+    "Arm: AHRS: waiting for home",
+    "Arm: Need Position Estimate",
 }
 
 
@@ -417,12 +480,12 @@ def test_arming_in_auto_fails_and_unknown_commands_are_unsupported(make_sim):
     gcs.drain()
     gcs.link.mav.command_long_send(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)
     seen = gcs.collect(0.3, ["COMMAND_ACK", "STATUSTEXT"])
-    assert [m.result for m in seen if m.get_type() == "COMMAND_ACK"] == [
-        mavlink.MAV_RESULT_FAILED]
+    assert [m.result for m in seen if m.get_type() == "COMMAND_ACK"] == [mavlink.MAV_RESULT_FAILED]
     assert "Arm: Auto mode not armable" in [m.text for m in seen if m.get_type() == "STATUSTEXT"]
     assert gcs.command(mavlink.MAV_CMD_USER_1).result == mavlink.MAV_RESULT_UNSUPPORTED
     assert gcs.command(mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10).result == (
-        mavlink.MAV_RESULT_FAILED)  # disarmed
+        mavlink.MAV_RESULT_FAILED
+    )  # disarmed
 
 
 def test_guided_takeoff_with_a_repeated_confirmation_is_idempotent(make_sim):
@@ -440,8 +503,10 @@ def test_guided_takeoff_with_a_repeated_confirmation_is_idempotent(make_sim):
     assert gcs.command(*takeoff).result == mavlink.MAV_RESULT_FAILED  # already flying
 
 
-@pytest.mark.parametrize(("autopilot", "speed_param", "default"), [
-    ("ardupilot", "WPNAV_SPEED", 1000.0), ("px4", "MPC_XY_CRUISE", 5.0)])
+@pytest.mark.parametrize(
+    ("autopilot", "speed_param", "default"),
+    [("ardupilot", "WPNAV_SPEED", 1000.0), ("px4", "MPC_XY_CRUISE", 5.0)],
+)
 def test_parameters_list_read_and_set(make_sim, autopilot, speed_param, default):
     sim, gcs = make_sim(autopilot)
     gcs.drain()
@@ -454,13 +519,15 @@ def test_parameters_list_read_and_set(make_sim, autopilot, speed_param, default)
     gcs.link.mav.param_request_read_send(1, 1, speed_param.encode(), -1)
     assert gcs.recv("PARAM_VALUE").param_index == by_name[speed_param].param_index
     gcs.link.mav.param_request_read_send(1, 1, b"", 2)
-    assert gcs.recv("PARAM_VALUE").param_id == sorted(values, key=lambda v: v.param_index)[
-        2].param_id
+    assert (
+        gcs.recv("PARAM_VALUE").param_id == sorted(values, key=lambda v: v.param_index)[2].param_id
+    )
     gcs.link.mav.param_set_send(1, 1, speed_param.encode(), default / 2, 9)
     reply = gcs.recv("PARAM_VALUE", where=lambda m: m.param_id == speed_param)
     assert reply.param_value == default / 2
     assert sim.vehicle(1).flight.limits().cruise_speed == pytest.approx(
-        default / 2 / (100 if autopilot == "ardupilot" else 1))
+        default / 2 / (100 if autopilot == "ardupilot" else 1)
+    )
 
 
 def test_ardupilot_streams_nothing_until_asked(make_sim):
@@ -481,8 +548,15 @@ def test_px4_streams_by_default_with_mavsdk_health_and_version(make_sim):
     sim, gcs = make_sim("px4")
     assert sim.wait_until(lambda: sim.state(1).estimate_ready, 3.0)
     types = {m.get_type() for m in gcs.collect(0.5)}
-    assert {"GLOBAL_POSITION_INT", "SYS_STATUS", "ATTITUDE", "EXTENDED_SYS_STATE",
-            "HOME_POSITION", "GPS_RAW_INT", "VFR_HUD"} <= types
+    assert {
+        "GLOBAL_POSITION_INT",
+        "SYS_STATUS",
+        "ATTITUDE",
+        "EXTENDED_SYS_STATE",
+        "HOME_POSITION",
+        "GPS_RAW_INT",
+        "VFR_HUD",
+    } <= types
     status = gcs.recv("SYS_STATUS")
     assert status.onboard_control_sensors_health == status.onboard_control_sensors_present
     assert status.onboard_control_sensors_present & mavlink.MAV_SYS_STATUS_PREARM_CHECK
@@ -508,11 +582,13 @@ def test_packets_for_another_system_are_ignored(make_sim):
 
 # -- faults -------------------------------------------------------------------------------
 
+
 def test_hundred_items_through_thirty_percent_loss_each_way(make_sim):
     """Each lost request costs one re-request period (1 s of wall clock on ArduPilot), so the
     vehicle's protocol clock runs 10x fast here to keep the test short."""
-    _sim, gcs = make_sim(faults=Faults(loss_in=0.3, loss_out=0.3),
-                         wall_clock=lambda: time.monotonic() * 10.0)
+    _sim, gcs = make_sim(
+        faults=Faults(loss_in=0.3, loss_out=0.3), wall_clock=lambda: time.monotonic() * 10.0
+    )
     items = waypoints(100)
     assert gcs.upload(items, timeout=30.0, retry_s=0.05) == mavlink.MAV_MISSION_ACCEPTED
     assert sum(seq == 99 for _, seq in gcs.requests) >= 1
