@@ -27,6 +27,9 @@ RETRY_WINDOW_S = 5.0
 FAULT_ARMING_TEXT = "Arm: Hardware safety switch"
 """A real ArduPilot refusal that can come at any time (the safety switch), for `fail_arming`."""
 FAULT_TAKEOFF_TEXT = "Takeoff refused"
+FORCE_REBOOT_MAGIC = 20190226
+"""param6 that lets ArduPilot reboot while armed (`handle_preflight_reboot`)."""
+REBOOT_AUTOPILOT = frozenset({1, 3})
 TAKEOFF_COMMANDS = frozenset({mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_MISSION_START})
 AUTOPILOT_VERSION = mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
 HOME_POSITION = mavlink.MAVLINK_MSG_ID_HOME_POSITION
@@ -62,6 +65,8 @@ class Outcome:
     result: int
     then: list[int] = field(default_factory=list)
     """Message ids to send after the ACK (REQUEST_MESSAGE)."""
+    reboot: bool = False
+    """Reboot once the ACK is out (PREFLIGHT_REBOOT_SHUTDOWN)."""
 
 
 @dataclass(frozen=True)
@@ -194,6 +199,14 @@ class CommandHandler:
             return Outcome(ACCEPTED, [msg_id])
         return Outcome(FAILED)
 
+    def _reboot(self, p: tuple[float, ...], now: float) -> Outcome:
+        """PREFLIGHT_REBOOT_SHUTDOWN as ArduPilot answers it: armed needs the magic param6."""
+        if self._flight.armed and _whole(p[5]) != FORCE_REBOOT_MAGIC:
+            return Outcome(FAILED)
+        if _whole(p[0]) not in REBOOT_AUTOPILOT:
+            return Outcome(UNSUPPORTED)
+        return Outcome(ACCEPTED, reboot=True)
+
     def _request_capabilities(self, p: tuple[float, ...], now: float) -> Outcome:
         return Outcome(ACCEPTED, [AUTOPILOT_VERSION])
 
@@ -213,5 +226,6 @@ class CommandHandler:
         mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: _set_mission_current,
         mavlink.MAV_CMD_REQUEST_MESSAGE: _request_message,
         mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: _request_capabilities,
+        mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: _reboot,
         mavlink.MAV_CMD_SET_MESSAGE_INTERVAL: _set_message_interval,
     }

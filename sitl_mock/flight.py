@@ -160,8 +160,13 @@ class FlightController:
         if not self.flavour.needs_mission_start:
             return self._px4_arming_failures(now, force)
         needs_position = self.mode in REQUIRES_POSITION
-        checks = arducopter_mandatory_failures if force else arducopter_arming_failures
-        failures = checks(self.timeline, self.uptime(now), needs_position)
+        uptime = self.uptime(now)
+        failures = arducopter_mandatory_failures(self.timeline, uptime, needs_position)
+        if force and failures:  # then the full checks run too (AP_Arming::arm), as SITL said
+            extra = arducopter_arming_failures(self.timeline, uptime, needs_position)
+            failures += [text for text in extra if text not in failures]
+        elif not force:
+            failures = arducopter_arming_failures(self.timeline, uptime, needs_position)
         if not failures and not force and self.mode in NOT_ARMABLE:
             failures = [f"{ARDUCOPTER_NAMES[self.mode]} mode not armable"]
         return [f"Arm: {text}" for text in failures]

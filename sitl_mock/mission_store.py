@@ -97,6 +97,7 @@ class MissionStore:
         self.started = False
         """A mission has run (or a current item was set) since it was stored: ArduPilot
         reports MISSION_CURRENT seq 0 before that."""
+        self._legacy_warned = False
         self.storage_ready = True
         """False while booting: ArduPilot's mission storage then holds 0 items (NO_SPACE)."""
         self.on_mission_changed: Callable[[], None] = lambda: None
@@ -203,6 +204,7 @@ class MissionStore:
             self._ack(sender, mission_type, mavlink.MAV_MISSION_ACCEPTED)
         else:
             self._upload = _Upload(sender, mission_type, msg.count, last_heard=now)
+            self._legacy_warned = False
             self._request(self._upload, now)
 
     def _on_item(self, msg: Message, sender: Sender, now: float) -> None:
@@ -290,18 +292,29 @@ class MissionStore:
             )
 
     def _on_request(self, msg: Message, sender: Sender, now: float) -> None:
+        """Download of one item. ArduPilot refuses MISSION_REQUEST_INT (not the legacy
+        request) while an upload is open, and warns once per upload about the legacy one."""
+        legacy = msg.get_type() == "MISSION_REQUEST"
         if msg.mission_type not in self._lists:
             self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_UNSUPPORTED)
+            return
+        if self._upload is not None and not legacy and self.flavour.home_is_item_zero:
+            self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_DENIED)
             return
         items = self.items(msg.mission_type)
         if not 0 <= msg.seq < len(items):
             self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_INVALID_SEQUENCE)
             return
         item = items[msg.seq]
-        if msg.get_type() == "MISSION_REQUEST_INT":
+        if not legacy:
             self._out.send(item.to_item_int(sender.sysid, sender.compid))
-        else:
-            self._out.send(item.to_item(sender.sysid, sender.compid))
+            return
+        self._out.send(item.to_item(sender.sysid, sender.compid))
+        if self.flavour.home_is_item_zero and not self._legacy_warned:
+            self._legacy_warned = True
+            self._out.say(
+                mavlink.MAV_SEVERITY_WARNING, "got MISSION_REQUEST; use MISSION_REQUEST_INT!"
+            )
 
     def _on_clear_all(self, msg: Message, sender: Sender, now: float) -> None:
         if self._upload is not None:

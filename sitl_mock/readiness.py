@@ -118,8 +118,6 @@ def arducopter_mandatory_failures(
     modes that need one (`AP_Arming_Copter::mandatory_checks`)."""
     if uptime < timeline.ready_s:
         return ["System not initialised"]
-    if needs_position and uptime < timeline.origin_s:
-        return ["AHRS: waiting for home"]
     if needs_position and uptime < timeline.estimate_s:
         return ["Need Position Estimate"]
     return []

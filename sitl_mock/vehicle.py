@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Hashable
-from typing import ClassVar
+from typing import ClassVar, TypeVar
 
 import numpy as np
 
@@ -33,6 +33,8 @@ from .transport import Endpoint
 from .vehicle_config import DEFAULT_HOME, VehicleConfig
 
 __all__ = ["DEFAULT_HOME", "Vehicle", "VehicleConfig"]
+
+T = TypeVar("T")
 
 REBOOT_SILENCE_S = 1.0  # shorter than the BOOT status, so a ground station sees it
 
@@ -307,30 +309,37 @@ class Vehicle:
 
     def _on_command(self, msg: Message, sender: Sender, now: float) -> None:
         command = Command.from_message(msg, sender)
-        self._held_texts = []
-        try:
-            outcome = self.commands.handle(command, now, self._wall())
-        finally:
-            texts, self._held_texts = self._held_texts, None
-        self.send(messages.command_ack(command.id, outcome.result, sender.sysid, sender.compid))
-        for text in texts:  # ArduPilot's STATUSTEXTs about a command follow its ACK
-            self.send(text)
+        outcome = self._texts_after_ack(
+            lambda: self.commands.handle(command, now, self._wall()),
+            lambda outcome: messages.command_ack(
+                command.id, outcome.result, sender.sysid, sender.compid
+            ),
+        )
         for msg_id in outcome.then:
             self._send_by_id(msg_id)
+        if outcome.reboot:
+            self.reboot()
 
     def _on_set_mode(self, msg: Message, sender: Sender, now: float) -> None:
+        self._texts_after_ack(
+            lambda: self.commands.set_mode(msg.base_mode, msg.custom_mode, now),
+            lambda result: messages.command_ack(
+                mavlink.MAVLINK_MSG_ID_SET_MODE, result, sender.sysid, sender.compid
+            ),
+        )
+
+    def _texts_after_ack(self, answer: Callable[[], T], ack: Callable[[T], Message]) -> T:
+        """Carry out a command, send its ACK, then what was said meanwhile: ArduPilot's
+        STATUSTEXTs about a command (arming checks, mode failures) follow its COMMAND_ACK."""
         self._held_texts = []
         try:
-            result = self.commands.set_mode(msg.base_mode, msg.custom_mode, now)
+            result = answer()
         finally:
             texts, self._held_texts = self._held_texts, None
-        self.send(
-            messages.command_ack(
-                mavlink.MAVLINK_MSG_ID_SET_MODE, result, sender.sysid, sender.compid
-            )
-        )
+        self.send(ack(result))
         for text in texts:
             self.send(text)
+        return result
 
     def _on_request_data_stream(self, msg: Message, sender: Sender, now: float) -> None:
         self.schedule.request_data_stream(

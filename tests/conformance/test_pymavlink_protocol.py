@@ -635,3 +635,40 @@ def test_silence_drops_the_link_for_a_while(make_sim):
     gcs.drain()
     assert gcs.collect(0.3, ["HEARTBEAT"]) == []
     assert gcs.recv("HEARTBEAT", 2.0) is not None
+
+
+def test_reboot_command_restarts_the_boot_and_is_refused_while_armed(make_sim):
+    sim, gcs = make_sim()
+    assert gcs.upload(waypoints(4)) == mavlink.MAV_MISSION_ACCEPTED
+    reboot = mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN
+    assert gcs.command(reboot, 1).result == mavlink.MAV_RESULT_ACCEPTED
+    assert gcs.recv("HEARTBEAT", 3.0, where=lambda m: m.system_status == BOOTING) is not None
+    assert len(sim.mission(1)) == 1
+    assert wait_booted(gcs)
+    assert sim.wait_until(lambda: sim.state(1).estimate_ready, 5.0)
+    assert gcs.command(400, 1).result == mavlink.MAV_RESULT_ACCEPTED
+    assert gcs.command(reboot, 1).result == mavlink.MAV_RESULT_FAILED
+    assert gcs.command(reboot, 1, 0, 0, 0, 0, 20190226).result == mavlink.MAV_RESULT_ACCEPTED
+
+
+def test_downloads_are_denied_while_an_upload_is_open_and_the_legacy_request_warns(make_sim):
+    """ArduPilot answers MISSION_REQUEST_INT and REQUEST_LIST with DENIED mid-upload (seen on
+    SITL) and says once per upload that MISSION_REQUEST is deprecated."""
+    _sim, gcs = make_sim()
+    gcs.link.mav.mission_count_send(1, 1, 3, 0)
+    assert gcs.recv("MISSION_REQUEST").seq == 0
+    gcs.link.mav.mission_request_int_send(1, 1, 0, 0)
+    assert gcs.recv("MISSION_ACK").type == mavlink.MAV_MISSION_DENIED
+    gcs.link.mav.mission_request_list_send(1, 1, 0)
+    assert gcs.recv("MISSION_ACK").type == mavlink.MAV_MISSION_DENIED
+    assert gcs.upload(waypoints(3)) == mavlink.MAV_MISSION_ACCEPTED
+    said: list[str] = []
+    gcs.link.mav.set_callback(
+        lambda m: said.append(m.text) if m.get_type() == "STATUSTEXT" else None
+    )
+    assert gcs.download(legacy=True) is not None
+    assert gcs.download(legacy=True) is not None
+    gcs.collect(0.2)
+    assert [t for t in said if "MISSION_REQUEST" in t] == [
+        "got MISSION_REQUEST; use MISSION_REQUEST_INT!"
+    ]
