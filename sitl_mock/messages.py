@@ -212,7 +212,7 @@ def autopilot_version(sysid: int, flavour: Flavour) -> Message:
         version = (1 << 24) | (15 << 16) | (0 << 8) | S.FIRMWARE_VERSION_TYPE_OFFICIAL
         capabilities = CAPABILITIES | S.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
     else:
-        version = (4 << 24) | (7 << 16) | (0 << 8) | S.FIRMWARE_VERSION_TYPE_DEV
+        version = (4 << 24) | (8 << 16) | (0 << 8) | S.FIRMWARE_VERSION_TYPE_DEV
         capabilities = CAPABILITIES
     return S.MAVLink_autopilot_version_message(
         capabilities,
