@@ -7,6 +7,7 @@ import json
 import math
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -168,25 +169,33 @@ def wait_for_lines(path: Path, count: int, timeout: float) -> bool:
     return False
 
 
+def free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def sysids_heard(link, count: int, timeout: float) -> set[int]:
+    heard: set[int] = set()
+    deadline = time.monotonic() + timeout
+    while len(heard) < count and (remaining := deadline - time.monotonic()) > 0:
+        msg = link.recv_match(type="HEARTBEAT", blocking=True, timeout=remaining)
+        if msg is not None:
+            heard.add(msg.get_srcSystem())
+    return heard
+
+
 def test_mvo_gcs_sitl_prints_connection_strings_and_exits_cleanly_on_sigint(tmp_path: Path):
+    """TCP servers by default, `--out` to a listening pymavlink, the strings to paste, and a
+    clean exit on SIGINT (the process is stopped by its pid, with bounded waits)."""
     exe = Path(sys.executable).parent / "mvo-gcs"
     log = tmp_path / "track.jsonl"
+    port = free_udp_port()
+    listener = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}", source_system=255)
+    argv = ["sitl", "--vehicles", "3", "--base-port", "0", "--speedup", "10"]
+    argv += ["--track-log", str(log), "--out", f"udp:127.0.0.1:{port}"]
     proc = subprocess.Popen(
-        [
-            str(exe),
-            "sitl",
-            "--vehicles",
-            "3",
-            "--base-port",
-            "0",
-            "--speedup",
-            "10",
-            "--track-log",
-            str(log),
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+        [str(exe), *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
     try:
         lines = [proc.stdout.readline().strip() for _ in range(3)]
@@ -197,12 +206,19 @@ def test_mvo_gcs_sitl_prints_connection_strings_and_exits_cleanly_on_sigint(tmp_
         heartbeat = link.recv_match(type="HEARTBEAT", blocking=True, timeout=5.0)
         link.close()
         assert heartbeat is not None and heartbeat.get_srcSystem() == 2
+        assert sysids_heard(listener, 3, timeout=5.0) == {1, 2, 3}
         assert wait_for_lines(log, 3 * 10, timeout=10.0)
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=10.0) == 0
     finally:
+        listener.close()
         if proc.poll() is None:
             proc.kill()
             proc.wait(timeout=5.0)
+    printed = proc.stdout.read()
+    assert f"mavproxy.py --master={url}" in printed
+    assert f"tcpout://{url.removeprefix('tcp:')}" in printed
+    assert f"mavproxy.py --master=udpin:127.0.0.1:{port}" in printed
+    assert f"udpin://127.0.0.1:{port}" in printed
     samples = log.read_text().splitlines()
     assert {json.loads(line)["sysid"] for line in samples[-3:]} == {1, 2, 3}
