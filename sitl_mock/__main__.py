@@ -11,7 +11,8 @@ from .cli import add_arguments, run
 def main() -> int:
     parser = argparse.ArgumentParser(
         prog="python -m sitl_mock",
-        description="run simulated MAVLink vehicles (ArduCopter or PX4 flavour)")
+        description="run simulated MAVLink vehicles (ArduCopter or PX4 flavour)",
+    )
     add_arguments(parser)
     return run(parser.parse_args())
 

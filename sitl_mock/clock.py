@@ -37,7 +37,8 @@ class SimClock:
         if self._wall_start is None:
             self.start(wall_now)
         wall = time.monotonic() if wall_now is None else wall_now
-        target = int((wall - self._wall_start) * self.speedup / self.step_s) - self._slipped_steps
+        start = self._wall_start if self._wall_start is not None else wall
+        target = int((wall - start) * self.speedup / self.step_s) - self._slipped_steps
         due = max(0, target - self.steps)
         if due > MAX_STEPS_PER_TICK:
             self._slipped_steps += due - MAX_STEPS_PER_TICK

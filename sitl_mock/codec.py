@@ -1,23 +1,34 @@
 """pymavlink's MAVLink 2 codec (ardupilotmega dialect), wrapped for a vehicle's two needs:
-encoding with its own sequence numbers and parsing each peer's byte stream separately."""
+encoding with its own sequence numbers and parsing each peer's byte stream separately,
+both optionally signed (`signing.py`)."""
 
 from __future__ import annotations
 
 from collections.abc import Hashable
 from dataclasses import dataclass
+from typing import Any, TypeAlias
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-Message = mavlink.MAVLink_message
+from . import signing
+
+Message: TypeAlias = Any
+"""A pymavlink message (`mavlink.MAVLink_message`): its fields are attributes made at run time,
+so a static type cannot name them."""
 
 VEHICLE_COMPONENT = mavlink.MAV_COMP_ID_AUTOPILOT1
 
 
 class Encoder:
-    """Packs messages as one vehicle (its sysid, component 1), numbering them like an autopilot."""
+    """Packs messages as one vehicle (its sysid, component 1), numbering them like an autopilot
+    and signing them when the vehicle has a key."""
 
-    def __init__(self, sysid: int, compid: int = VEHICLE_COMPONENT) -> None:
+    def __init__(
+        self, sysid: int, compid: int = VEHICLE_COMPONENT, key: bytes | None = None
+    ) -> None:
         self._mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        if key is not None:
+            signing.sign_outgoing(self._mav, key)
 
     def encode(self, msg: Message) -> bytes:
         buf = msg.pack(self._mav)
@@ -26,11 +37,18 @@ class Encoder:
 
 
 class Decoder:
-    """Parses one peer's bytes; a stream may split or join packets, so state is kept per peer."""
+    """Parses one peer's bytes; a stream may split or join packets, so state is kept per peer.
+    With a key, packets not signed with it are dropped and counted in `rejected`."""
 
-    def __init__(self) -> None:
+    def __init__(self, key: bytes | None = None) -> None:
         self._mav = mavlink.MAVLink(None)
         self._mav.robust_parsing = True
+        if key is not None:
+            signing.require_signed(self._mav, key)
+
+    @property
+    def rejected(self) -> int:
+        return signing.rejected(self._mav)
 
     def decode(self, data: bytes) -> list[Message]:
         messages = self._mav.parse_buffer(data) or []

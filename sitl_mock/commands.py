@@ -1,5 +1,10 @@
 """COMMAND_LONG / COMMAND_INT / SET_MODE handling: one method per command, each returning
-the MAV_RESULT a real autopilot gives, plus messages to send after the COMMAND_ACK."""
+the MAV_RESULT a real autopilot gives, plus messages to send after the COMMAND_ACK.
+
+Refusal faults (`Faults.fail_arming`, `refuse_takeoff`, `refuse_commands`) are applied
+here, before a command reaches the flight controller. The retry window that gives a
+repeated command (higher `confirmation`) the same answer is a protocol timer: wall-clock.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 from .codec import Message, Sender, mavlink
+from .faults import Faults
 from .flight import ACCEPTED, FAILED, FlightController
 from .mission_store import MissionStore
 from .modes import FlightMode
@@ -17,7 +23,14 @@ from .telemetry import TelemetrySchedule
 UNSUPPORTED = mavlink.MAV_RESULT_UNSUPPORTED
 FORCE_MAGIC = 21196
 RETRY_WINDOW_S = 5.0
-"""A command repeated with a higher `confirmation` within this window gets the same answer."""
+"""Wall seconds in which a command repeated with a higher `confirmation` gets the same answer."""
+FAULT_ARMING_TEXT = "Arm: Hardware safety switch"
+"""A real ArduPilot refusal that can come at any time (the safety switch), for `fail_arming`."""
+FAULT_TAKEOFF_TEXT = "Takeoff refused"
+FORCE_REBOOT_MAGIC = 20190226
+"""param6 that lets ArduPilot reboot while armed (`handle_preflight_reboot`)."""
+REBOOT_AUTOPILOT = frozenset({1, 3})
+TAKEOFF_COMMANDS = frozenset({mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_MISSION_START})
 AUTOPILOT_VERSION = mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION
 HOME_POSITION = mavlink.MAVLINK_MSG_ID_HOME_POSITION
 
@@ -35,8 +48,15 @@ class Command:
         if msg.get_type() == "COMMAND_INT":
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
             return cls(msg.command, params, 0, sender)
-        params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6,
-                  msg.param7)
+        params = (
+            msg.param1,
+            msg.param2,
+            msg.param3,
+            msg.param4,
+            msg.param5,
+            msg.param6,
+            msg.param7,
+        )
         return cls(msg.command, params, msg.confirmation, sender)
 
 
@@ -45,6 +65,8 @@ class Outcome:
     result: int
     then: list[int] = field(default_factory=list)
     """Message ids to send after the ACK (REQUEST_MESSAGE)."""
+    reboot: bool = False
+    """Reboot once the ACK is out (PREFLIGHT_REBOOT_SHUTDOWN)."""
 
 
 @dataclass(frozen=True)
@@ -65,24 +87,57 @@ _Handler = Callable[["CommandHandler", tuple[float, ...], float], Outcome]
 class CommandHandler:
     """Maps commands to the flight controller, mission store and telemetry schedule."""
 
-    def __init__(self, flight: FlightController, store: MissionStore,
-                 schedule: TelemetrySchedule, current_changed: Callable[[], None]) -> None:
+    def __init__(
+        self,
+        flight: FlightController,
+        store: MissionStore,
+        schedule: TelemetrySchedule,
+        current_changed: Callable[[], None],
+        faults: Callable[[], Faults] = Faults,
+        say: Callable[[int, str], None] = lambda severity, text: None,
+    ) -> None:
         self._flight = flight
         self._store = store
         self._schedule = schedule
         self._current_changed = current_changed
+        self._faults = faults
+        self._say = say
         self._answered: dict[tuple[int, int, int], _Answered] = {}
 
-    def handle(self, command: Command, now: float) -> Outcome:
+    def handle(self, command: Command, now: float, wall_now: float) -> Outcome:
+        """Answer a command at simulated time `now`; `wall_now` times the retry window."""
         key = (command.sender.sysid, command.sender.compid, command.id)
         previous = self._answered.get(key)
-        if (command.confirmation > 0 and previous is not None
-                and previous.params == command.params and now - previous.at <= RETRY_WINDOW_S):
+        if (
+            command.confirmation > 0
+            and previous is not None
+            and previous.params == command.params
+            and wall_now - previous.at <= RETRY_WINDOW_S
+        ):
             return previous.outcome  # a retry of a command already carried out
-        handler = self._handlers.get(command.id)
-        outcome = Outcome(UNSUPPORTED) if handler is None else handler(self, command.params, now)
-        self._answered[key] = _Answered(command.params, outcome, now)
+        outcome = self._refused(command) or self._carry_out(command, now)
+        self._answered[key] = _Answered(command.params, outcome, wall_now)
         return outcome
+
+    def _carry_out(self, command: Command, now: float) -> Outcome:
+        handler = self._handlers.get(command.id)
+        return Outcome(UNSUPPORTED) if handler is None else handler(self, command.params, now)
+
+    def _refused(self, command: Command) -> Outcome | None:
+        """The answer a refusal fault gives this command, if one applies."""
+        faults, command_id = self._faults(), command.id
+        if command_id in faults.refuse_commands:
+            return Outcome(faults.refuse_result)
+        arming = (
+            command_id == mavlink.MAV_CMD_COMPONENT_ARM_DISARM and _whole(command.params[0]) == 1
+        )
+        if arming and faults.fail_arming and not self._flight.armed:
+            self._say(mavlink.MAV_SEVERITY_CRITICAL, FAULT_ARMING_TEXT)
+            return Outcome(FAILED)
+        if command_id in TAKEOFF_COMMANDS and faults.refuse_takeoff and self._flight.armed:
+            self._say(mavlink.MAV_SEVERITY_CRITICAL, FAULT_TAKEOFF_TEXT)
+            return Outcome(FAILED)
+        return None
 
     def set_mode(self, base_mode: int, custom_mode: int, now: float) -> int:
         """SET_MODE message (and DO_SET_MODE): only custom modes are understood."""
@@ -138,11 +193,19 @@ class CommandHandler:
 
     def _request_message(self, p: tuple[float, ...], now: float) -> Outcome:
         msg_id = _whole(p[0])
-        if msg_id == HOME_POSITION and not self._flight.estimate_ready(now):
+        if msg_id == HOME_POSITION and not self._flight.home_set(now):
             return Outcome(FAILED)  # no home until the position estimate has an origin
         if msg_id == AUTOPILOT_VERSION or self._schedule.can_stream(msg_id):
             return Outcome(ACCEPTED, [msg_id])
         return Outcome(FAILED)
+
+    def _reboot(self, p: tuple[float, ...], now: float) -> Outcome:
+        """PREFLIGHT_REBOOT_SHUTDOWN as ArduPilot answers it: armed needs the magic param6."""
+        if self._flight.armed and _whole(p[5]) != FORCE_REBOOT_MAGIC:
+            return Outcome(FAILED)
+        if _whole(p[0]) not in REBOOT_AUTOPILOT:
+            return Outcome(UNSUPPORTED)
+        return Outcome(ACCEPTED, reboot=True)
 
     def _request_capabilities(self, p: tuple[float, ...], now: float) -> Outcome:
         return Outcome(ACCEPTED, [AUTOPILOT_VERSION])
@@ -163,5 +226,6 @@ class CommandHandler:
         mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: _set_mission_current,
         mavlink.MAV_CMD_REQUEST_MESSAGE: _request_message,
         mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: _request_capabilities,
+        mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: _reboot,
         mavlink.MAV_CMD_SET_MESSAGE_INTERVAL: _set_message_interval,
     }

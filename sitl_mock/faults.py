@@ -1,6 +1,8 @@
-"""Link and vehicle faults on demand: loss, delay, duplication, reordering, silence and
-mission rejection. Delays are in SIMULATED seconds (they scale with the speed-up and stay
-deterministic for a seed); every random choice comes from the vehicle's numpy Generator."""
+"""Link and vehicle faults on demand: loss, delay, duplication, reordering, silence, mission
+rejection, and refusals late in a start (arming, take-off, any command kind) so that a
+ground station's fallback after a partial start can be tested. Link delays are in
+SIMULATED seconds (they scale with the speed-up and stay deterministic for a seed); every
+random choice comes from the vehicle's numpy Generator."""
 
 from __future__ import annotations
 
@@ -11,11 +13,24 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
+from .codec import mavlink
+
 P = TypeVar("P")
 
 REORDER_HOLD_S = 0.1
 """A packet held back for reordering is released after this long if nothing overtakes it."""
 REJECT_POINTS = ("count", "last_item")
+VEHICLE_FAULTS = frozenset(
+    {
+        "reject_missions",
+        "reject_at",
+        "fail_arming",
+        "refuse_takeoff",
+        "refuse_commands",
+        "refuse_result",
+    }
+)
+"""Faults of the vehicle, not of the link."""
 
 
 @dataclass(frozen=True)
@@ -38,6 +53,13 @@ class Faults:
     """Answer mission uploads with MAV_MISSION_ERROR (at `reject_at`)."""
     reject_at: str = "last_item"
     """"count" (the MISSION_COUNT is refused) or "last_item" (the final item is refused)."""
+    fail_arming: bool = False
+    """Every arming attempt fails (COMMAND_ACK FAILED, "Arm: ..." text), ready or not."""
+    refuse_takeoff: bool = False
+    """NAV_TAKEOFF and MISSION_START commands fail once armed: the start breaks after arming."""
+    refuse_commands: frozenset[int] = frozenset()
+    """MAV_CMD ids answered with `refuse_result` and not carried out."""
+    refuse_result: int = mavlink.MAV_RESULT_FAILED
 
     def __post_init__(self) -> None:
         for name in ("loss_in", "loss_out", "duplicate", "reorder"):
@@ -49,11 +71,11 @@ class Faults:
                 raise ValueError(f"{name} must not be negative")
         if self.reject_at not in REJECT_POINTS:
             raise ValueError(f"reject_at must be one of {REJECT_POINTS}, got {self.reject_at!r}")
+        object.__setattr__(self, "refuse_commands", frozenset(self.refuse_commands))
 
     @property
     def link_is_clean(self) -> bool:
-        return all(getattr(self, f.name) == 0 for f in fields(self)
-                   if f.name not in ("reject_missions", "reject_at"))
+        return all(getattr(self, f.name) == 0 for f in fields(self) if f.name not in VEHICLE_FAULTS)
 
 
 class _Channel(Generic[P]):

@@ -5,8 +5,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from . import ardupilot_storage
 from .codec import mavlink
 from .kinematics import NavLimits
+from .mission_item import MissionItem
 from .modes import ARDUCOPTER_MODES, PX4_MODES, FlightMode, ModeTable
 from .params import (
     ARDUCOPTER_DEFAULTS,
@@ -29,7 +31,13 @@ class Flavour:
     item_request_id: int
     """How the vehicle asks for an item on upload: MISSION_REQUEST (40) or _INT (51)."""
     rerequest_s: float
+    """Wall seconds without an item before the vehicle asks again (a protocol timer)."""
     upload_timeout_s: float
+    """Wall seconds without an item before the vehicle cancels the upload."""
+    item_refusal: Callable[[MissionItem], int | None]
+    """The MAV_MISSION_RESULT with which the autopilot refuses an uploaded item, or None."""
+    store_item: Callable[[MissionItem], MissionItem]
+    """The item as the autopilot stores it (and a download returns it)."""
     streams_by_default: bool
     repeats_item_reached: bool
     needs_mission_start: bool
@@ -45,8 +53,15 @@ class Flavour:
     """Mode a NAV_TAKEOFF command leaves the vehicle in (GUIDED; PX4 TAKEOFF)."""
     after_takeoff_mode: FlightMode
     mission_end_mode: FlightMode
-    boot_status_s: float
-    """Seconds in MAV_STATE_BOOT after start."""
+    merges_item_reached: bool
+    """ArduPilot queues one MISSION_ITEM_REACHED per loop: items done together report only the
+    last; it reports DO items and never NAV_LAND (the landing disarms first). PX4 reports
+    each navigation item, landing included, and repeats it."""
+    announces_items: bool
+    """ArduPilot says "Mission: N Name" as each item starts and "Reached command #N"."""
+    sends_unasked: bool
+    """ArduPilot sends TIMESYNC, and GPS_GLOBAL_ORIGIN and HOME_POSITION when home is set,
+    to a ground station that asked for nothing."""
 
     def new_params(self, sysid: int) -> ParameterSet:
         params = ParameterSet(self.param_defaults, bytewise=self.params_bytewise)
@@ -63,6 +78,8 @@ ARDUPILOT = Flavour(
     item_request_id=mavlink.MAVLINK_MSG_ID_MISSION_REQUEST,
     rerequest_s=1.0,
     upload_timeout_s=8.0,
+    item_refusal=ardupilot_storage.refusal,
+    store_item=ardupilot_storage.stored,
     streams_by_default=False,
     repeats_item_reached=False,
     needs_mission_start=True,
@@ -76,7 +93,9 @@ ARDUPILOT = Flavour(
     takeoff_mode=FlightMode.GUIDED,
     after_takeoff_mode=FlightMode.GUIDED,
     mission_end_mode=FlightMode.AUTO,
-    boot_status_s=2.0,
+    merges_item_reached=True,
+    announces_items=True,
+    sends_unasked=True,
 )
 
 PX4 = Flavour(
@@ -88,6 +107,8 @@ PX4 = Flavour(
     item_request_id=mavlink.MAVLINK_MSG_ID_MISSION_REQUEST_INT,
     rerequest_s=0.25,
     upload_timeout_s=5.0,
+    item_refusal=lambda item: None,
+    store_item=lambda item: item,
     streams_by_default=True,
     repeats_item_reached=True,
     needs_mission_start=False,
@@ -101,7 +122,9 @@ PX4 = Flavour(
     takeoff_mode=FlightMode.TAKEOFF,
     after_takeoff_mode=FlightMode.LOITER,
     mission_end_mode=FlightMode.LOITER,
-    boot_status_s=0.0,
+    merges_item_reached=False,
+    announces_items=False,
+    sends_unasked=False,
 )
 
 FLAVOURS = {flavour.name: flavour for flavour in (ARDUPILOT, PX4)}

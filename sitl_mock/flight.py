@@ -13,8 +13,9 @@ from .kinematics import Body, NavLimits
 from .manoeuvres import TAKEOFF, Climb, Hold, Land, Manoeuvre, return_home
 from .mission_runner import ItemPlacer, MissionEvents, MissionRunner
 from .mission_store import MissionStore
-from .modes import REQUIRES_POSITION, FlightMode
+from .modes import ARDUCOPTER_NAMES, REQUIRES_POSITION, FlightMode
 from .params import ParameterSet
+from .readiness import Timeline, arducopter_arming_failures, arducopter_mandatory_failures
 
 ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
 FAILED = mavlink.MAV_RESULT_FAILED
@@ -38,23 +39,37 @@ class Home:
 class FlightController:
     """One vehicle's flight state and the decisions a real autopilot takes about it."""
 
-    def __init__(self, flavour: Flavour, body: Body, params: ParameterSet, store: MissionStore,
-                 home: Home, to_local: Callable[[float, float], tuple[float, float]],
-                 events: MissionEvents, say: Callable[[int, str], None],
-                 estimate_delay_s: float) -> None:
+    def __init__(
+        self,
+        flavour: Flavour,
+        body: Body,
+        params: ParameterSet,
+        store: MissionStore,
+        home: Home,
+        to_local: Callable[[float, float], tuple[float, float]],
+        events: MissionEvents,
+        say: Callable[[int, str], None],
+        timeline: Timeline,
+    ) -> None:
         self.flavour = flavour
         self.body = body
         self.params = params
         self.home = home
-        self.estimate_delay_s = estimate_delay_s
+        self.timeline = timeline
         self._say = say
         self._boot_time = 0.0
         self._cruise_override: float | None = None
         placer = ItemPlacer(to_local, lambda: self.home.alt_amsl)
         implicit_takeoff = None if flavour.needs_mission_start else self._px4_takeoff_alt()
         self.runner = MissionRunner(
-            store, body, placer, self.limits, lambda: (self.home.east, self.home.north),
-            lambda: flavour.rtl_alt_m(params), events, takeoff_alt_if_missing=implicit_takeoff,
+            store,
+            body,
+            placer,
+            self.limits,
+            lambda: (self.home.east, self.home.north),
+            lambda: flavour.rtl_alt_m(params),
+            events,
+            takeoff_alt_if_missing=implicit_takeoff,
         )
         self._reset_state()
 
@@ -69,8 +84,29 @@ class FlightController:
 
     # -- state ------------------------------------------------------------------------------
 
+    def uptime(self, now: float) -> float:
+        return now - self._boot_time
+
+    def booted(self, now: float) -> bool:
+        """Initialisation is over ("ArduPilot Ready")."""
+        return self.uptime(now) >= self.timeline.ready_s
+
+    def position_known(self, now: float) -> bool:
+        """The GPS has a fix: telemetry reports a position."""
+        return self.uptime(now) >= self.timeline.gps_fix_s
+
+    def home_set(self, now: float) -> bool:
+        """The EKF origin and home exist (HOME_POSITION, GPS_GLOBAL_ORIGIN)."""
+        return self.uptime(now) >= self.timeline.origin_s
+
     def estimate_ready(self, now: float) -> bool:
-        return now - self._boot_time >= self.estimate_delay_s
+        """The position estimate is good enough to arm and fly in modes that need it."""
+        return self.uptime(now) >= self.timeline.estimate_s
+
+    def finish_boot(self) -> None:
+        """ArduCopter sets its boot mode when initialisation ends, whatever was asked before."""
+        if not self.armed:
+            self._enter(self.flavour.boot_mode, self._boot_time)
 
     @property
     def airborne(self) -> bool:
@@ -78,12 +114,18 @@ class FlightController:
 
     @property
     def landed_state(self) -> int:
-        phase = self.runner.phase if self.mode == FlightMode.AUTO else (
-            None if self._manoeuvre is None else self._manoeuvre.phase)
+        phase = (
+            self.runner.phase
+            if self.mode == FlightMode.AUTO
+            else (None if self._manoeuvre is None else self._manoeuvre.phase)
+        )
         if not self._airborne:
             climbing = self.armed and phase == TAKEOFF
-            return mavlink.MAV_LANDED_STATE_TAKEOFF if climbing else (
-                mavlink.MAV_LANDED_STATE_ON_GROUND)
+            return (
+                mavlink.MAV_LANDED_STATE_TAKEOFF
+                if climbing
+                else (mavlink.MAV_LANDED_STATE_ON_GROUND)
+            )
         return phase if phase is not None else mavlink.MAV_LANDED_STATE_IN_AIR
 
     def limits(self) -> NavLimits:
@@ -101,11 +143,11 @@ class FlightController:
     def arm(self, now: float, force: bool = False) -> int:
         if self.armed:
             return ACCEPTED
-        if not force:
-            refusal = self._arming_refusal(now)
-            if refusal is not None:
-                self._say(mavlink.MAV_SEVERITY_CRITICAL, refusal)
-                return self.flavour.arm_rejected_result
+        failures = self.arming_failures(now, force)
+        if failures:
+            for text in failures:  # one STATUSTEXT per failed check, as ArduPilot reports
+                self._say(mavlink.MAV_SEVERITY_CRITICAL, text)
+            return self.flavour.arm_rejected_result
         self.armed = True
         self._idle_since = now
         self.apply_limits()
@@ -113,20 +155,39 @@ class FlightController:
             self._start_auto(now)
         return ACCEPTED
 
-    def _arming_refusal(self, now: float) -> str | None:
-        px4 = not self.flavour.needs_mission_start
-        if not self.estimate_ready(now):
-            return "Arming denied: no position estimate" if px4 else "Arm: Need Position Estimate"
-        if self.mode in NOT_ARMABLE and not (px4 and self.mode == FlightMode.AUTO):
-            return f"Arming denied: {self.mode.value} mode" if px4 else (
-                f"Arm: {self.mode.value} mode not armable")
-        return None
+    def arming_failures(self, now: float, force: bool = False) -> list[str]:
+        """The texts an arming attempt fails with now (none: it arms)."""
+        if not self.flavour.needs_mission_start:
+            return self._px4_arming_failures(now, force)
+        needs_position = self.mode in REQUIRES_POSITION
+        uptime = self.uptime(now)
+        failures = arducopter_mandatory_failures(self.timeline, uptime, needs_position)
+        if force and failures:  # then the full checks run too (AP_Arming::arm), as SITL said
+            extra = arducopter_arming_failures(self.timeline, uptime, needs_position)
+            failures += [text for text in extra if text not in failures]
+        elif not force:
+            failures = arducopter_arming_failures(self.timeline, uptime, needs_position)
+        if not failures and not force and self.mode in NOT_ARMABLE:
+            failures = [f"{ARDUCOPTER_NAMES[self.mode]} mode not armable"]
+        return [f"Arm: {text}" for text in failures]
 
-    def prearm_text(self, now: float) -> str | None:
-        """The periodic pre-arm complaint while the estimate is not ready (ArduPilot)."""
-        if self.armed or self.estimate_ready(now) or not self.flavour.needs_mission_start:
-            return None
-        return "PreArm: Need Position Estimate"
+    def _px4_arming_failures(self, now: float, force: bool) -> list[str]:
+        if force:
+            return []
+        if not self.estimate_ready(now):
+            return ["Arming denied: no position estimate"]
+        if self.mode in NOT_ARMABLE and self.mode != FlightMode.AUTO:
+            return [f"Arming denied: {self.mode.value} mode"]
+        return []
+
+    def prearm_texts(self, now: float) -> list[str]:
+        """The periodic pre-arm report of a disarmed ArduCopter: every check failing now."""
+        if self.armed or not self.flavour.needs_mission_start:
+            return []
+        failures = arducopter_arming_failures(
+            self.timeline, self.uptime(now), self.mode in REQUIRES_POSITION
+        )
+        return [f"PreArm: {text}" for text in failures]
 
     def disarm(self, now: float, force: bool = False) -> int:
         if not self.armed:
@@ -142,16 +203,35 @@ class FlightController:
             return DENIED
         if mode == self.mode:
             return ACCEPTED
-        if mode in REQUIRES_POSITION and not self.estimate_ready(now):
-            self._say(mavlink.MAV_SEVERITY_WARNING,
-                      f"Mode change to {mode.value} failed: requires position")
+        if self._needs_position_for(mode) and not self.estimate_ready(now):
+            self._say(
+                mavlink.MAV_SEVERITY_WARNING,
+                f"Mode change to {self._mode_name(mode)} failed: requires position",
+            )
             return FAILED
-        if (mode == FlightMode.AUTO and self.flavour.needs_mission_start and self.armed
-                and not self._airborne and not self.runner.starts_with_takeoff()):
+        if (
+            mode == FlightMode.AUTO
+            and self.flavour.needs_mission_start
+            and self.armed
+            and not self._airborne
+            and not self.runner.starts_with_takeoff()
+        ):
             self._say(mavlink.MAV_SEVERITY_CRITICAL, "Auto: Missing Takeoff Cmd")
             return FAILED
         self._enter(mode, now)
         return ACCEPTED
+
+    def _mode_name(self, mode: FlightMode) -> str:
+        if self.flavour.needs_mission_start:
+            return ARDUCOPTER_NAMES.get(mode, mode.value)
+        return mode.value
+
+    def _needs_position_for(self, mode: FlightMode) -> bool:
+        """ArduCopter checks a mode's position needs only when armed (disarmed, the arming
+        checks do it); PX4 refuses such modes outright."""
+        if mode not in REQUIRES_POSITION:
+            return False
+        return self.armed or not self.flavour.needs_mission_start
 
     def takeoff(self, alt: float, now: float) -> int:
         """NAV_TAKEOFF command: climb to `alt` metres above home and hold there."""
@@ -247,8 +327,9 @@ class FlightController:
         if mode != FlightMode.AUTO:
             self.runner.stop()
         if mode == FlightMode.AUTO:
-            if self.armed and (self._airborne or not self.flavour.needs_mission_start
-                               or self._mission_start_given):
+            if self.armed and (
+                self._airborne or not self.flavour.needs_mission_start or self._mission_start_given
+            ):
                 self._start_auto(now)
         elif mode == FlightMode.TAKEOFF:
             if self.armed:
@@ -256,8 +337,15 @@ class FlightController:
         elif not self._airborne:
             return
         elif mode == FlightMode.RTL:
-            self._run(return_home(self.body, (self.home.east, self.home.north),
-                                  self.flavour.rtl_alt_m(self.params), self.limits()), now)
+            self._run(
+                return_home(
+                    self.body,
+                    (self.home.east, self.home.north),
+                    self.flavour.rtl_alt_m(self.params),
+                    self.limits(),
+                ),
+                now,
+            )
         elif mode == FlightMode.LAND:
             self._run(Land(self.limits()), now)
         else:
@@ -284,7 +372,10 @@ class FlightController:
         self._manoeuvre = None
         self._mission_start_given = False
         self._idle_since = None
-        self.runner.stop()
+        if self.flavour.needs_mission_start:
+            self.runner.rewind(active=self.mode == FlightMode.AUTO)  # ArduCopter resets it
+        else:
+            self.runner.stop()
         self.body.set_active(False)
         if self.body.alt > 0:
             east, north, _ = self.body.position

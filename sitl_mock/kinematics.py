@@ -73,8 +73,9 @@ class PointMassFleet:
         braking = np.where(stopping, dist, np.maximum(dist - self.radius, 0.0))
         speed = np.minimum(self.cruise, np.sqrt(self.exit_speed**2 + 2 * self.accel * braking))
         speed[stopping] = np.minimum(speed[stopping], dist[stopping] / dt)
-        direction = np.divide(to_target, dist[:, None], out=np.zeros_like(to_target),
-                              where=dist[:, None] > 1e-9)
+        direction = np.divide(
+            to_target, dist[:, None], out=np.zeros_like(to_target), where=dist[:, None] > 1e-9
+        )
         self.vel[:, :2] += _limit(direction * speed[:, None] - self.vel[:, :2], self.accel * dt)
 
     def _step_vertical(self, dt: float) -> None:
@@ -151,8 +152,9 @@ class Body:
     def set_descent(self, rate: float) -> None:
         self._fleet.descent[self.index] = rate
 
-    def go_to(self, east: float, north: float, alt: float, radius: float,
-              exit_speed: float = 0.0) -> None:
+    def go_to(
+        self, east: float, north: float, alt: float, radius: float, exit_speed: float = 0.0
+    ) -> None:
         f, i = self._fleet, self.index
         f.target[i] = (east, north, alt)
         f.radius[i] = max(radius, 0.1)

@@ -18,8 +18,10 @@ TAKEOFF_DONE_MARGIN_M = 0.5
 
 
 class Manoeuvre(Protocol):
-    phase: int
-    """The EXTENDED_SYS_STATE landed_state while this runs (once off the ground)."""
+    @property
+    def phase(self) -> int:
+        """The EXTENDED_SYS_STATE landed_state while this runs (once off the ground)."""
+        ...
 
     def start(self, body: Body, now: float) -> None: ...
 
@@ -63,8 +65,15 @@ class FlyTo:
 
     phase = IN_AIR
 
-    def __init__(self, east: float, north: float, alt: float, radius: float,
-                 exit_speed: float = 0.0, hold_s: float = 0.0) -> None:
+    def __init__(
+        self,
+        east: float,
+        north: float,
+        alt: float,
+        radius: float,
+        exit_speed: float = 0.0,
+        hold_s: float = 0.0,
+    ) -> None:
         self.east, self.north, self.alt = east, north, alt
         self.radius, self.exit_speed, self.hold_s = radius, exit_speed, hold_s
         self._arrived_at: float | None = None
@@ -128,8 +137,9 @@ class _ClimbInPlace(Climb):
     phase = IN_AIR
 
 
-def return_home(body: Body, home_en: tuple[float, float], rtl_alt: float,
-                limits: NavLimits) -> Sequence:
+def return_home(
+    body: Body, home_en: tuple[float, float], rtl_alt: float, limits: NavLimits
+) -> Sequence:
     """RTL: climb to the return altitude if below it, fly home, land."""
     alt = max(body.alt, rtl_alt)
     return Sequence(

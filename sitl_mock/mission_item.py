@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import math
+from dataclasses import astuple, dataclass, replace
 
 from .codec import Message, mavlink
 
-GLOBAL_FRAMES = frozenset({
-    mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
-    mavlink.MAV_FRAME_GLOBAL_INT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
-})
+GLOBAL_FRAMES = frozenset(
+    {
+        mavlink.MAV_FRAME_GLOBAL,
+        mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        mavlink.MAV_FRAME_GLOBAL_INT,
+        mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+    }
+)
 AMSL_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT})
 SUPPORTED_FRAMES = GLOBAL_FRAMES | {mavlink.MAV_FRAME_MISSION}
 
@@ -49,10 +54,18 @@ class MissionItem:
         """From MISSION_ITEM_INT, or legacy MISSION_ITEM (float degrees scaled to degE7)."""
         scale = 1e7 if msg.get_type() == "MISSION_ITEM" and msg.frame in GLOBAL_FRAMES else 1
         return cls(
-            seq=msg.seq, frame=msg.frame, command=msg.command,
-            param1=msg.param1, param2=msg.param2, param3=msg.param3, param4=msg.param4,
-            x=round(msg.x * scale), y=round(msg.y * scale), z=msg.z,
-            autocontinue=msg.autocontinue, current=msg.current,
+            seq=msg.seq,
+            frame=msg.frame,
+            command=msg.command,
+            param1=msg.param1,
+            param2=msg.param2,
+            param3=msg.param3,
+            param4=msg.param4,
+            x=round(msg.x * scale),
+            y=round(msg.y * scale),
+            z=msg.z,
+            autocontinue=msg.autocontinue,
+            current=msg.current,
             mission_type=getattr(msg, "mission_type", 0),
         )
 
@@ -61,15 +74,48 @@ class MissionItem:
 
     def to_item_int(self, target_system: int, target_component: int) -> Message:
         return mavlink.MAVLink_mission_item_int_message(
-            target_system, target_component, self.seq, self.frame, self.command, self.current,
-            self.autocontinue, self.param1, self.param2, self.param3, self.param4,
-            self.x, self.y, self.z, self.mission_type,
+            target_system,
+            target_component,
+            self.seq,
+            self.frame,
+            self.command,
+            self.current,
+            self.autocontinue,
+            self.param1,
+            self.param2,
+            self.param3,
+            self.param4,
+            self.x,
+            self.y,
+            self.z,
+            self.mission_type,
         )
 
     def to_item(self, target_system: int, target_component: int) -> Message:
         scale = 1e-7 if self.frame in GLOBAL_FRAMES else 1.0
         return mavlink.MAVLink_mission_item_message(
-            target_system, target_component, self.seq, self.frame, self.command, self.current,
-            self.autocontinue, self.param1, self.param2, self.param3, self.param4,
-            self.x * scale, self.y * scale, self.z, self.mission_type,
+            target_system,
+            target_component,
+            self.seq,
+            self.frame,
+            self.command,
+            self.current,
+            self.autocontinue,
+            self.param1,
+            self.param2,
+            self.param3,
+            self.param4,
+            self.x * scale,
+            self.y * scale,
+            self.z,
+            self.mission_type,
         )
+
+
+def same_item(a: MissionItem, b: MissionItem) -> bool:
+    """Field-by-field equality in which NaN equals NaN (a re-sent item carries the same NaNs)."""
+    return all(
+        x == y
+        or (isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y))
+        for x, y in zip(astuple(a), astuple(b), strict=True)
+    )

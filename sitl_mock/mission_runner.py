@@ -1,7 +1,8 @@
 """Flies the stored mission in AUTO: one manoeuvre per navigation item, DO items at once.
 
-Reports progress the way an autopilot does (MISSION_CURRENT on every change,
-MISSION_ITEM_REACHED for each navigation item) through `MissionEvents`.
+Reports progress through `MissionEvents`: every item started and every item completed
+(DO items too); the vehicle decides, per autopilot, which of those it tells the ground
+station and how (ArduCopter merges and skips some, see vehicle.py).
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ NAV_RTL = mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH
 NAV_LAND = mavlink.MAV_CMD_NAV_LAND
 NAV_TAKEOFF = mavlink.MAV_CMD_NAV_TAKEOFF
 DO_CHANGE_SPEED = mavlink.MAV_CMD_DO_CHANGE_SPEED
-NAV_COMMANDS = frozenset({NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME, NAV_RTL, NAV_LAND,
-                          NAV_TAKEOFF})
+NAV_COMMANDS = frozenset(
+    {NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME, NAV_RTL, NAV_LAND, NAV_TAKEOFF}
+)
 PASS_THROUGH_TARGETS = frozenset({NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME})
 
 
@@ -40,7 +42,9 @@ class MissionState(enum.IntEnum):
 
 
 class MissionEvents(Protocol):
-    def item_reached(self, seq: int) -> None: ...
+    def item_started(self, item: MissionItem) -> None: ...
+
+    def item_reached(self, item: MissionItem) -> None: ...
 
     def current_changed(self) -> None: ...
 
@@ -50,8 +54,11 @@ class MissionEvents(Protocol):
 class ItemPlacer:
     """Turns an item's coordinates into the fleet's local metres and home-relative altitude."""
 
-    def __init__(self, to_local: Callable[[float, float], tuple[float, float]],
-                 home_alt_amsl: Callable[[], float]) -> None:
+    def __init__(
+        self,
+        to_local: Callable[[float, float], tuple[float, float]],
+        home_alt_amsl: Callable[[], float],
+    ) -> None:
         self._to_local = to_local
         self._home_alt = home_alt_amsl
 
@@ -72,10 +79,17 @@ class ItemPlacer:
 class MissionRunner:
     """Executes items from `store.current` on; the flight controller calls `update` in AUTO."""
 
-    def __init__(self, store: MissionStore, body: Body, placer: ItemPlacer,
-                 limits: Callable[[], NavLimits], home_en: Callable[[], tuple[float, float]],
-                 rtl_alt: Callable[[], float], events: MissionEvents,
-                 takeoff_alt_if_missing: float | None = None) -> None:
+    def __init__(
+        self,
+        store: MissionStore,
+        body: Body,
+        placer: ItemPlacer,
+        limits: Callable[[], NavLimits],
+        home_en: Callable[[], tuple[float, float]],
+        rtl_alt: Callable[[], float],
+        events: MissionEvents,
+        takeoff_alt_if_missing: float | None = None,
+    ) -> None:
         self.store = store
         self._body = body
         self._placer = placer
@@ -118,7 +132,19 @@ class MissionRunner:
             self.store.set_current(self.store.first_item)
             self._complete = False
         self._running, self._paused = True, False
+        self.store.started = True
         self._begin_item(now)
+
+    def rewind(self, active: bool) -> None:
+        """ArduCopter on disarming: the mission goes back to its first item; still in AUTO, it
+        is loaded again at once (MISSION_CURRENT seq 1, ACTIVE) and waits for the motors."""
+        self._complete, self._paused, self._manoeuvre = False, False, None
+        self.store.current = self.store.first_item
+        self._running = active and self.store.total > 0
+        if self._running:
+            self.store.started = True
+            self._events.item_started(self.store.items()[self.store.current])
+        self._events.current_changed()
 
     def stop(self) -> None:
         """Leave AUTO: remember the current item, drop its manoeuvre."""
@@ -153,6 +179,7 @@ class MissionRunner:
         items = self.store.items()
         while self.store.current < len(items):
             item = items[self.store.current]
+            self._events.item_started(item)
             manoeuvre = self._manoeuvre_for(item, items)
             if manoeuvre is not None:
                 self._manoeuvre = manoeuvre
@@ -171,8 +198,7 @@ class MissionRunner:
             self._begin_item(now)
 
     def _complete_item(self, item: MissionItem) -> None:
-        if item.command in NAV_COMMANDS:
-            self._events.item_reached(item.seq)
+        self._events.item_reached(item)
 
     def _advance(self, items: list[MissionItem]) -> bool:
         if self.store.current + 1 >= len(items):
@@ -222,8 +248,9 @@ class MissionRunner:
             return None
         return Climb(max(self._implicit_takeoff, alt))
 
-    def _corner_speed(self, item: MissionItem, items: list[MissionItem], east: float,
-                      north: float, radius: float) -> float:
+    def _corner_speed(
+        self, item: MissionItem, items: list[MissionItem], east: float, north: float, radius: float
+    ) -> float:
         """Speed to carry through this waypoint: full for a straight line, less for a sharp
         turn (the turn at the acceleration limit fits inside the acceptance radius), zero if
         the vehicle must stop (end of mission, landing, hold)."""
@@ -235,8 +262,9 @@ class MissionRunner:
         limits = self._limits()
         next_east, next_north = self._placer.position(following, self._body)
         here_east, here_north, _ = self._body.position
-        turn = _turn_angle((east - here_east, north - here_north),
-                           (next_east - east, next_north - north))
+        turn = _turn_angle(
+            (east - here_east, north - here_north), (next_east - east, next_north - north)
+        )
         if turn is None:
             return 0.0
         if turn < 1e-3:
@@ -245,7 +273,7 @@ class MissionRunner:
 
 
 def _next_nav(items: list[MissionItem], seq: int) -> MissionItem | None:
-    return next((item for item in items[seq + 1:] if item.command in NAV_COMMANDS), None)
+    return next((item for item in items[seq + 1 :] if item.command in NAV_COMMANDS), None)
 
 
 def _turn_angle(leg_in: tuple[float, float], leg_out: tuple[float, float]) -> float | None:

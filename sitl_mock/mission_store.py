@@ -1,8 +1,11 @@
 """The vehicle side of the MAVLink mission protocol: upload, download, clear, set current.
 
 Uploads are staged and swapped in only when complete, so a failed, timed-out or
-interrupted upload leaves the previous mission intact. Timing runs on simulated time
-through `tick`. Messages go out through an `Outbox`; nothing here touches a socket.
+interrupted upload leaves the previous mission intact. Every time here (`now` of `handle`
+and `tick`) is the protocol clock, which the vehicle feeds with WALL-clock seconds: a real
+autopilot's re-request and cancel timers count real milliseconds, whatever the speed-up,
+so a ground station's step timeouts meet them as on a real link. Messages go out through
+an `Outbox`; nothing here touches a socket.
 """
 
 from __future__ import annotations
@@ -13,22 +16,35 @@ from typing import ClassVar, Protocol
 
 from .codec import Message, Sender, mavlink
 from .flavour import Flavour
-from .mission_item import SUPPORTED_FRAMES, MissionItem
+from .mission_item import SUPPORTED_FRAMES, MissionItem, same_item
 
-MISSION, FENCE, RALLY, ALL = (mavlink.MAV_MISSION_TYPE_MISSION, mavlink.MAV_MISSION_TYPE_FENCE,
-                              mavlink.MAV_MISSION_TYPE_RALLY, mavlink.MAV_MISSION_TYPE_ALL)
+MISSION, FENCE, RALLY, ALL = (
+    mavlink.MAV_MISSION_TYPE_MISSION,
+    mavlink.MAV_MISSION_TYPE_FENCE,
+    mavlink.MAV_MISSION_TYPE_RALLY,
+    mavlink.MAV_MISSION_TYPE_ALL,
+)
 
 SUPPORTED_COMMANDS: dict[int, frozenset[int]] = {
-    MISSION: frozenset({
-        mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_UNLIM,
-        mavlink.MAV_CMD_NAV_LOITER_TIME, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-        mavlink.MAV_CMD_NAV_LAND, mavlink.MAV_CMD_NAV_TAKEOFF, mavlink.MAV_CMD_DO_CHANGE_SPEED,
-    }),
-    FENCE: frozenset({
-        mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
-        mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
-        mavlink.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION, mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
-    }),
+    MISSION: frozenset(
+        {
+            mavlink.MAV_CMD_NAV_WAYPOINT,
+            mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+            mavlink.MAV_CMD_NAV_LOITER_TIME,
+            mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+            mavlink.MAV_CMD_NAV_LAND,
+            mavlink.MAV_CMD_NAV_TAKEOFF,
+            mavlink.MAV_CMD_DO_CHANGE_SPEED,
+        }
+    ),
+    FENCE: frozenset(
+        {
+            mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+            mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+            mavlink.MAV_CMD_NAV_FENCE_CIRCLE_INCLUSION,
+            mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
+        }
+    ),
     RALLY: frozenset({mavlink.MAV_CMD_NAV_RALLY_POINT}),
 }
 
@@ -67,12 +83,23 @@ class _Completed:
 class MissionStore:
     """Mission, fence and rally lists and the transfer state machine over them."""
 
-    def __init__(self, flavour: Flavour, out: Outbox, home_item: Callable[[], MissionItem],
-                 capacity: int = DEFAULT_CAPACITY) -> None:
+    def __init__(
+        self,
+        flavour: Flavour,
+        out: Outbox,
+        home_item: Callable[[], MissionItem],
+        capacity: int = DEFAULT_CAPACITY,
+    ) -> None:
         self.flavour = flavour
         self.capacity = capacity
         self.reject_at: str | None = None
         """Fault: "count" or "last_item" makes uploads fail there with MAV_MISSION_ERROR."""
+        self.started = False
+        """A mission has run (or a current item was set) since it was stored: ArduPilot
+        reports MISSION_CURRENT seq 0 before that."""
+        self._legacy_warned = False
+        self.storage_ready = True
+        """False while booting: ArduPilot's mission storage then holds 0 items (NO_SPACE)."""
         self.on_mission_changed: Callable[[], None] = lambda: None
         self.on_current_changed: Callable[[], None] = lambda: None
         self._out = out
@@ -102,6 +129,13 @@ class MissionStore:
         return max(0, len(self._lists[MISSION]) - self.first_item)
 
     @property
+    def reported_current(self) -> int:
+        """MISSION_CURRENT.seq: 0 without a mission and (ArduPilot) until one has run."""
+        if not self.total or (self.flavour.home_is_item_zero and not self.started):
+            return 0
+        return self.current
+
+    @property
     def uploading(self) -> bool:
         return self._upload is not None
 
@@ -109,6 +143,7 @@ class MissionStore:
         if not self.first_item <= seq < len(self._lists[MISSION]):
             return False
         self.current = seq
+        self.started = True
         return True
 
     def load(self, items: list[MissionItem], mission_type: int = MISSION) -> None:
@@ -122,6 +157,7 @@ class MissionStore:
         self._upload = None
         self._completed = None
         self.current = self.first_item
+        self.started = False
         self.on_mission_changed()
 
     # -- the protocol -----------------------------------------------------------------------
@@ -143,6 +179,11 @@ class MissionStore:
         elif now - upload.last_request >= self.flavour.rerequest_s:
             self._request(upload, now)
 
+    @property
+    def room(self) -> int:
+        """How many items an upload may have now (0 until the storage is ready)."""
+        return self.capacity if self.storage_ready else 0
+
     def _on_count(self, msg: Message, sender: Sender, now: float) -> None:
         mission_type = msg.mission_type
         if mission_type not in self._lists:
@@ -155,13 +196,15 @@ class MissionStore:
             self._upload = None  # the same GCS restarts its upload
         if self.reject_at == "count":
             self._ack(sender, mission_type, mavlink.MAV_MISSION_ERROR)
-        elif msg.count > self.capacity:
+        elif msg.count > self.room:
             self._ack(sender, mission_type, mavlink.MAV_MISSION_NO_SPACE)
+            self._out.say(mavlink.MAV_SEVERITY_WARNING, f"Only {self.room} items are supported")
         elif msg.count == 0:
             self._replace(mission_type, [])
             self._ack(sender, mission_type, mavlink.MAV_MISSION_ACCEPTED)
         else:
             self._upload = _Upload(sender, mission_type, msg.count, last_heard=now)
+            self._legacy_warned = False
             self._request(self._upload, now)
 
     def _on_item(self, msg: Message, sender: Sender, now: float) -> None:
@@ -191,8 +234,12 @@ class MissionStore:
 
     def _answer_stray_item(self, item: MissionItem, sender: Sender) -> None:
         done = self._completed
-        if (done is not None and done.sender == sender and done.mission_type == item.mission_type
-                and done.last_item == item):
+        if (
+            done is not None
+            and done.sender == sender
+            and done.mission_type == item.mission_type
+            and same_item(done.last_item, item)
+        ):
             self._ack(sender, item.mission_type, mavlink.MAV_MISSION_ACCEPTED)
         else:
             self._ack(sender, item.mission_type, mavlink.MAV_MISSION_ERROR)
@@ -205,6 +252,8 @@ class MissionStore:
             return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
         if item.command not in SUPPORTED_COMMANDS[upload.mission_type]:
             return mavlink.MAV_MISSION_UNSUPPORTED
+        if upload.mission_type == MISSION:
+            return self.flavour.item_refusal(item)
         return None
 
     def _finish(self, upload: _Upload) -> None:
@@ -219,11 +268,14 @@ class MissionStore:
             self._out.say(mavlink.MAV_SEVERITY_INFO, "Flight plan received")
 
     def _replace(self, mission_type: int, items: list[MissionItem]) -> None:
+        if mission_type == MISSION:
+            items = [self.flavour.store_item(item) for item in items]
         if mission_type == MISSION and items and self.flavour.home_is_item_zero:
             items = [self._home_item(), *items[1:]]
         self._lists[mission_type] = list(items)
         if mission_type == MISSION:
             self.current = self.first_item
+            self.started = False
             self.on_mission_changed()
 
     def _on_request_list(self, msg: Message, sender: Sender, now: float) -> None:
@@ -233,22 +285,36 @@ class MissionStore:
             self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_DENIED)
         else:
             count = len(self.items(msg.mission_type))
-            self._out.send(mavlink.MAVLink_mission_count_message(
-                sender.sysid, sender.compid, count, msg.mission_type))
+            self._out.send(
+                mavlink.MAVLink_mission_count_message(
+                    sender.sysid, sender.compid, count, msg.mission_type
+                )
+            )
 
     def _on_request(self, msg: Message, sender: Sender, now: float) -> None:
+        """Download of one item. ArduPilot refuses MISSION_REQUEST_INT (not the legacy
+        request) while an upload is open, and warns once per upload about the legacy one."""
+        legacy = msg.get_type() == "MISSION_REQUEST"
         if msg.mission_type not in self._lists:
             self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_UNSUPPORTED)
+            return
+        if self._upload is not None and not legacy and self.flavour.home_is_item_zero:
+            self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_DENIED)
             return
         items = self.items(msg.mission_type)
         if not 0 <= msg.seq < len(items):
             self._ack(sender, msg.mission_type, mavlink.MAV_MISSION_INVALID_SEQUENCE)
             return
         item = items[msg.seq]
-        if msg.get_type() == "MISSION_REQUEST_INT":
+        if not legacy:
             self._out.send(item.to_item_int(sender.sysid, sender.compid))
-        else:
-            self._out.send(item.to_item(sender.sysid, sender.compid))
+            return
+        self._out.send(item.to_item(sender.sysid, sender.compid))
+        if self.flavour.home_is_item_zero and not self._legacy_warned:
+            self._legacy_warned = True
+            self._out.say(
+                mavlink.MAV_SEVERITY_WARNING, "got MISSION_REQUEST; use MISSION_REQUEST_INT!"
+            )
 
     def _on_clear_all(self, msg: Message, sender: Sender, now: float) -> None:
         if self._upload is not None:
@@ -284,12 +350,15 @@ class MissionStore:
         target = upload.sender
         if self.flavour.item_request_id == mavlink.MAVLINK_MSG_ID_MISSION_REQUEST:
             msg = mavlink.MAVLink_mission_request_message(
-                target.sysid, target.compid, upload.expected, upload.mission_type)
+                target.sysid, target.compid, upload.expected, upload.mission_type
+            )
         else:
             msg = mavlink.MAVLink_mission_request_int_message(
-                target.sysid, target.compid, upload.expected, upload.mission_type)
+                target.sysid, target.compid, upload.expected, upload.mission_type
+            )
         self._out.send(msg)
 
     def _ack(self, target: Sender, mission_type: int, result: int) -> None:
-        self._out.send(mavlink.MAVLink_mission_ack_message(
-            target.sysid, target.compid, result, mission_type))
+        self._out.send(
+            mavlink.MAVLink_mission_ack_message(target.sysid, target.compid, result, mission_type)
+        )

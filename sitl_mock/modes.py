@@ -23,8 +23,16 @@ class FlightMode(enum.Enum):
 
 
 REQUIRES_POSITION = frozenset(
-    {FlightMode.AUTO, FlightMode.GUIDED, FlightMode.LOITER, FlightMode.RTL, FlightMode.BRAKE,
-     FlightMode.POSCTL, FlightMode.TAKEOFF, FlightMode.OFFBOARD}
+    {
+        FlightMode.AUTO,
+        FlightMode.GUIDED,
+        FlightMode.LOITER,
+        FlightMode.RTL,
+        FlightMode.BRAKE,
+        FlightMode.POSCTL,
+        FlightMode.TAKEOFF,
+        FlightMode.OFFBOARD,
+    }
 )
 """Modes a real autopilot refuses before it has a position estimate."""
 
@@ -32,8 +40,12 @@ REQUIRES_POSITION = frozenset(
 class ModeTable:
     """Two-way map between FlightMode and a custom_mode number, plus base_mode flags."""
 
-    def __init__(self, numbers: dict[FlightMode, int], guided_modes: frozenset[FlightMode],
-                 base_flags: dict[FlightMode, int]) -> None:
+    def __init__(
+        self,
+        numbers: dict[FlightMode, int],
+        guided_modes: frozenset[FlightMode],
+        base_flags: dict[FlightMode, int],
+    ) -> None:
         self._numbers = numbers
         self._modes = {number: mode for mode, number in numbers.items()}
         self._guided = guided_modes
@@ -61,13 +73,29 @@ _AP_BASE = mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED | mavlink.MAV_MODE_FLAG_ST
 
 ARDUCOPTER_MODES = ModeTable(
     numbers={
-        FlightMode.STABILIZE: 0, FlightMode.AUTO: 3, FlightMode.GUIDED: 4, FlightMode.LOITER: 5,
-        FlightMode.RTL: 6, FlightMode.LAND: 9, FlightMode.BRAKE: 17,
+        FlightMode.STABILIZE: 0,
+        FlightMode.AUTO: 3,
+        FlightMode.GUIDED: 4,
+        FlightMode.LOITER: 5,
+        FlightMode.RTL: 6,
+        FlightMode.LAND: 9,
+        FlightMode.BRAKE: 17,
     },
     guided_modes=frozenset({FlightMode.AUTO, FlightMode.GUIDED, FlightMode.RTL, FlightMode.LAND}),
     base_flags={mode: _AP_BASE for mode in FlightMode},
 )
 """ArduCopter: base_mode 0x51 (0x59 in autopilot-driven modes), 0xD9 armed, as SITL sends."""
+
+ARDUCOPTER_NAMES = {
+    FlightMode.STABILIZE: "Stabilize",
+    FlightMode.AUTO: "Auto",
+    FlightMode.GUIDED: "Guided",
+    FlightMode.LOITER: "Loiter",
+    FlightMode.RTL: "RTL",
+    FlightMode.LAND: "Land",
+    FlightMode.BRAKE: "Brake",
+}
+"""What ArduCopter's `Mode::name()` calls each mode in its STATUSTEXTs."""
 
 
 def _px4(main: int, sub: int = 0) -> int:
@@ -77,10 +105,14 @@ def _px4(main: int, sub: int = 0) -> int:
 PX4_MAIN_POSCTL, PX4_MAIN_AUTO, PX4_MAIN_OFFBOARD, PX4_MAIN_STABILIZED = 3, 4, 6, 7
 PX4_SUB_TAKEOFF, PX4_SUB_LOITER, PX4_SUB_MISSION, PX4_SUB_RTL, PX4_SUB_LAND = 2, 3, 4, 5, 6
 
-_PX4_AUTO_FLAGS = (mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
-                   | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED)
-_PX4_MANUAL_FLAGS = (mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
-                     | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED)
+_PX4_AUTO_FLAGS = (
+    mavlink.MAV_MODE_FLAG_AUTO_ENABLED
+    | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+    | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+)
+_PX4_MANUAL_FLAGS = (
+    mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+)
 
 PX4_MODES = ModeTable(
     numbers={
@@ -97,9 +129,17 @@ PX4_MODES = ModeTable(
     base_flags={
         FlightMode.STABILIZE: _PX4_MANUAL_FLAGS,
         FlightMode.POSCTL: _PX4_MANUAL_FLAGS,
-        **{mode: _PX4_AUTO_FLAGS for mode in (FlightMode.AUTO, FlightMode.LOITER, FlightMode.RTL,
-                                              FlightMode.LAND, FlightMode.TAKEOFF,
-                                              FlightMode.OFFBOARD)},
+        **{
+            mode: _PX4_AUTO_FLAGS
+            for mode in (
+                FlightMode.AUTO,
+                FlightMode.LOITER,
+                FlightMode.RTL,
+                FlightMode.LAND,
+                FlightMode.TAKEOFF,
+                FlightMode.OFFBOARD,
+            )
+        },
     },
 )
 """PX4: custom_mode = main << 16 | sub << 24."""

@@ -12,10 +12,22 @@ from dataclasses import dataclass
 from .codec import Message, mavlink
 from .kinematics import NavLimits
 
-INT8, INT16, INT32, REAL32 = (mavlink.MAV_PARAM_TYPE_INT8, mavlink.MAV_PARAM_TYPE_INT16,
-                              mavlink.MAV_PARAM_TYPE_INT32, mavlink.MAV_PARAM_TYPE_REAL32)
-_INTEGER_TYPES = frozenset({mavlink.MAV_PARAM_TYPE_UINT8, INT8, mavlink.MAV_PARAM_TYPE_UINT16,
-                            INT16, mavlink.MAV_PARAM_TYPE_UINT32, INT32})
+INT8, INT16, INT32, REAL32 = (
+    mavlink.MAV_PARAM_TYPE_INT8,
+    mavlink.MAV_PARAM_TYPE_INT16,
+    mavlink.MAV_PARAM_TYPE_INT32,
+    mavlink.MAV_PARAM_TYPE_REAL32,
+)
+_INTEGER_TYPES = frozenset(
+    {
+        mavlink.MAV_PARAM_TYPE_UINT8,
+        INT8,
+        mavlink.MAV_PARAM_TYPE_UINT16,
+        INT16,
+        mavlink.MAV_PARAM_TYPE_UINT32,
+        INT32,
+    }
+)
 
 
 @dataclass

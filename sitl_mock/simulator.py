@@ -1,5 +1,8 @@
 """Runs N vehicles in one asyncio loop: fixed physics steps on simulated time, the sockets,
-and the truth (tracks, separation). Usable from a test thread or inside a running loop."""
+and the truth (tracks, separation). Usable from a test thread or inside a running loop.
+
+Vehicle behaviour runs on the simulated clock (`speedup` times wall time, in fixed steps);
+link-protocol timers run on `wall_clock` (time.monotonic unless a test injects another)."""
 
 from __future__ import annotations
 
@@ -22,7 +25,7 @@ from .kinematics import PointMassFleet
 from .mission_item import MissionItem
 from .snapshot import VehicleState
 from .track import Separation, SeparationMonitor, TrackPoint, TrackRecorder
-from .transport import connection_string, open_endpoint
+from .transport import UdpOutput, connection_string, open_endpoint, parse_output
 from .vehicle import Vehicle, VehicleConfig
 
 T = TypeVar("T")
@@ -35,9 +38,17 @@ MIN_SLEEP_S = 0.001
 class Simulator:
     """N vehicles, one loop, one clock. See the package docstring for an example."""
 
-    def __init__(self, vehicles: Sequence[VehicleConfig], speedup: float = 1.0, seed: int = 0,
-                 host: str = "127.0.0.1", stream_by_default: bool = False,
-                 step_s: float = DEFAULT_STEP_S, track_log: Path | str | None = None) -> None:
+    def __init__(
+        self,
+        vehicles: Sequence[VehicleConfig],
+        speedup: float = 1.0,
+        seed: int = 0,
+        host: str = "127.0.0.1",
+        stream_by_default: bool = False,
+        step_s: float = DEFAULT_STEP_S,
+        track_log: Path | str | None = None,
+        wall_clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         sysids = [config.sysid for config in vehicles]
         if not sysids:
             raise ValueError("at least one vehicle is needed")
@@ -53,9 +64,17 @@ class Simulator:
         self._lat = self._lon = np.zeros(len(vehicles))
         rngs = np.random.default_rng(seed).spawn(len(vehicles))
         self._vehicles = {
-            config.sysid: Vehicle(config, self._fleet.body(i), tuple(homes_en[i]),
-                                  self._frame.to_local, self._geodetic_of, lambda: self.sim_time,
-                                  rngs[i], stream_by_default)
+            config.sysid: Vehicle(
+                config,
+                self._fleet.body(i),
+                tuple(homes_en[i]),
+                self._frame.to_local,
+                self._geodetic_of,
+                lambda: self.sim_time,
+                rngs[i],
+                stream_by_default,
+                wall_clock,
+            )
             for i, config in enumerate(vehicles)
         }
         self._track = TrackRecorder(sysids, Path(track_log) if track_log else None)
@@ -66,6 +85,7 @@ class Simulator:
         self._task: asyncio.Task | None = None
         self._thread: threading.Thread | None = None
         self._stopping = False
+        self._outputs: dict[tuple[str, int], UdpOutput] = {}
 
     # -- life cycle ----------------------------------------------------------------------
 
@@ -75,8 +95,10 @@ class Simulator:
         self._loop_thread = threading.get_ident()
         for vehicle in self._vehicles.values():
             config = vehicle.config
-            vehicle.endpoint = await open_endpoint(config.transport, self.host, config.port,
-                                                   vehicle.on_packet)
+            vehicle.endpoint = await open_endpoint(
+                config.transport, self.host, config.port, vehicle.on_packet
+            )
+            vehicle.outputs = [await self._output(text, vehicle) for text in config.outputs]
         self._stopping = False
         self._clock.start()
         self._task = asyncio.create_task(self._run())
@@ -89,7 +111,19 @@ class Simulator:
         for vehicle in self._vehicles.values():
             if vehicle.endpoint is not None:
                 await vehicle.endpoint.close()
+        for output in self._outputs.values():
+            await output.close()
+        self._outputs.clear()
         self._track.close()
+
+    async def _output(self, text: str, vehicle: Vehicle) -> UdpOutput:
+        """The one socket for a `udp:HOST:PORT` output, opened by the first vehicle naming it."""
+        address = parse_output(text)
+        output = self._outputs.get(address)
+        if output is None:
+            output = self._outputs[address] = await UdpOutput.open(*address)
+        output.subscribe(vehicle.on_packet)
+        return output
 
     @contextlib.contextmanager
     def running(self) -> Iterator[Simulator]:
@@ -109,8 +143,9 @@ class Simulator:
                 await asyncio.sleep(0.05)
             await self.stop()
 
-        self._thread = threading.Thread(target=asyncio.run, args=(main(),), daemon=True,
-                                        name="sitl_mock")
+        self._thread = threading.Thread(
+            target=asyncio.run, args=(main(),), daemon=True, name="sitl_mock"
+        )
         self._thread.start()
         if not started.wait(timeout=CALL_TIMEOUT_S) or failure:
             self._stopping = True
@@ -143,8 +178,9 @@ class Simulator:
     def _geodetic(self) -> tuple[np.ndarray, np.ndarray]:
         """Every vehicle's lat/lon, converted once per step at most."""
         if self._geo_step != self._clock.steps:
-            self._lat, self._lon = self._frame.to_geodetic(self._fleet.pos[:, 0],
-                                                           self._fleet.pos[:, 1])
+            self._lat, self._lon = self._frame.to_geodetic(
+                self._fleet.pos[:, 0], self._fleet.pos[:, 1]
+            )
             self._geo_step = self._clock.steps
         return self._lat, self._lon
 
@@ -169,8 +205,18 @@ class Simulator:
         return endpoint.port
 
     def connection_string(self, sysid: int) -> str:
-        return connection_string(self._vehicle(sysid).config.transport, self.host,
-                                 self.port(sysid))
+        """How a pymavlink client reaches the vehicle's own server (`udpout:` or `tcp:`)."""
+        return connection_string(self._vehicle(sysid).config.transport, self.host, self.port(sysid))
+
+    def output_addresses(self) -> list[tuple[str, int]]:
+        """Every `--out` ground-station address the vehicles send to."""
+        return sorted(
+            {parse_output(text) for v in self._vehicles.values() for text in v.config.outputs}
+        )
+
+    def rejected_packets(self, sysid: int) -> int:
+        """Packets a signing vehicle dropped (unsigned or signed with another key)."""
+        return self._call(lambda: self._vehicle(sysid).rejected_packets)
 
     def set_faults(self, sysid: int, faults: Faults) -> None:
         self._call(self._vehicle(sysid).set_faults, faults)
@@ -201,7 +247,12 @@ class Simulator:
 
     def set_param(self, sysid: int, name: str, value: float) -> None:
         vehicle = self._vehicle(sysid)
-        self._call(lambda: (vehicle.params.set(name, value), vehicle.flight.apply_limits()))
+
+        def set_and_apply() -> None:
+            vehicle.params.set(name, value)
+            vehicle.flight.apply_limits()
+
+        self._call(set_and_apply)
 
     def track(self, sysid: int) -> list[TrackPoint]:
         return self._call(self._track.track, sysid)
@@ -212,8 +263,9 @@ class Simulator:
     def min_separation(self) -> Separation | None:
         return self._call(self._separation.result, self._frame.to_geodetic)
 
-    def wait_until(self, predicate: Callable[[], bool], timeout: float,
-                   poll_s: float = 0.02) -> bool:
+    def wait_until(
+        self, predicate: Callable[[], bool], timeout: float, poll_s: float = 0.02
+    ) -> bool:
         """Poll `predicate` (from a non-loop thread) for up to `timeout` wall seconds."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -235,8 +287,12 @@ class Simulator:
     def _call(self, fn: Callable[..., T], *args: object) -> T:
         """Run `fn` on the simulator's loop thread and wait for its result."""
         loop = self._loop
-        if (loop is None or not loop.is_running() or self._loop_thread == threading.get_ident()
-                or self._task is None):
+        if (
+            loop is None
+            or not loop.is_running()
+            or self._loop_thread == threading.get_ident()
+            or self._task is None
+        ):
             return fn(*args)
         future: concurrent.futures.Future[T] = concurrent.futures.Future()
 

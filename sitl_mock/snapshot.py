@@ -3,6 +3,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
+
+
+class Sensors(NamedTuple):
+    """SYS_STATUS onboard_control_sensors_present / _enabled / _health."""
+
+    present: int
+    enabled: int
+    health: int
+
+
+NO_SENSORS = Sensors(0, 0, 0)
 
 
 @dataclass(frozen=True)
@@ -32,6 +44,15 @@ class VehicleState:
     home: tuple[float, float, float]
     """lat, lon, alt AMSL."""
     estimate_ready: bool
+    """The position estimate allows arming and flying in GUIDED/AUTO."""
+    position_known: bool = True
+    """The GPS has a fix: GLOBAL_POSITION_INT carries latitude and longitude."""
+    home_set: bool = True
+    """The EKF origin and home exist: HOME_POSITION is sent."""
+    sensors: Sensors = NO_SENSORS
+    """SYS_STATUS present, enabled, health."""
+    rejected_packets: int = 0
+    """Incoming packets dropped for a missing or wrong MAVLink 2 signature."""
 
     @property
     def ground_speed(self) -> float:

@@ -25,8 +25,10 @@ DEFAULT_RATES_HZ: dict[int, float] = {
 
 STREAM_GROUPS: dict[int, tuple[int, ...]] = {
     S.MAV_DATA_STREAM_EXTENDED_STATUS: (
-        S.MAVLINK_MSG_ID_SYS_STATUS, S.MAVLINK_MSG_ID_GPS_RAW_INT,
-        S.MAVLINK_MSG_ID_MISSION_CURRENT, S.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+        S.MAVLINK_MSG_ID_SYS_STATUS,
+        S.MAVLINK_MSG_ID_GPS_RAW_INT,
+        S.MAVLINK_MSG_ID_MISSION_CURRENT,
+        S.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
     ),
     S.MAV_DATA_STREAM_POSITION: (S.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,),
     S.MAV_DATA_STREAM_EXTRA1: (S.MAVLINK_MSG_ID_ATTITUDE,),
@@ -36,11 +38,22 @@ STREAM_GROUPS: dict[int, tuple[int, ...]] = {
 """ArduCopter's REQUEST_DATA_STREAM groups, restricted to the messages simulated here."""
 
 
+UNASKED_ARDUPILOT_S: dict[int, float] = {S.MAVLINK_MSG_ID_TIMESYNC: 10.0}
+"""What ArduCopter sends besides HEARTBEAT before anyone asks, every so many seconds (its
+first after one interval). HOME_POSITION and GPS_GLOBAL_ORIGIN come on events instead."""
+
+
 class TelemetrySchedule:
     """Per-message intervals and next due times; `due` returns what to send now."""
 
-    def __init__(self, stream_by_default: bool, streamable: frozenset[int]) -> None:
+    def __init__(
+        self,
+        stream_by_default: bool,
+        streamable: frozenset[int],
+        unasked_s: dict[int, float] | None = None,
+    ) -> None:
         self._streamable = streamable
+        self._unasked = dict(unasked_s or {})
         self._intervals: dict[int, float] = {}
         self._next: dict[int, float] = {}
         self._next_any = math.inf
@@ -51,6 +64,8 @@ class TelemetrySchedule:
         self._next.clear()
         self._next_any = math.inf
         self.set_interval(S.MAVLINK_MSG_ID_HEARTBEAT, HEARTBEAT_INTERVAL_S, now)
+        for msg_id, seconds in self._unasked.items():
+            self.set_interval(msg_id, seconds, now + seconds)
         if stream_by_default:
             for msg_id, rate in DEFAULT_RATES_HZ.items():
                 self.set_interval(msg_id, 1.0 / rate, now)
@@ -85,8 +100,11 @@ class TelemetrySchedule:
         return True
 
     def request_data_stream(self, stream_id: int, rate_hz: float, start: bool, now: float) -> None:
-        groups = STREAM_GROUPS.values() if stream_id == S.MAV_DATA_STREAM_ALL else (
-            [STREAM_GROUPS[stream_id]] if stream_id in STREAM_GROUPS else [])
+        groups = (
+            STREAM_GROUPS.values()
+            if stream_id == S.MAV_DATA_STREAM_ALL
+            else ([STREAM_GROUPS[stream_id]] if stream_id in STREAM_GROUPS else [])
+        )
         for group in groups:
             for msg_id in group:
                 on = start and rate_hz > 0

@@ -43,8 +43,9 @@ class TrackRecorder:
         self._samples: list[np.ndarray] = []
         self._log: TextIO | None = open(log_path, "w") if log_path else None  # noqa: SIM115
 
-    def record(self, t: float, lat: np.ndarray, lon: np.ndarray, alt: np.ndarray,
-               armed: np.ndarray) -> None:
+    def record(
+        self, t: float, lat: np.ndarray, lon: np.ndarray, alt: np.ndarray, armed: np.ndarray
+    ) -> None:
         sample = np.stack([lat, lon, alt, armed.astype(float)])
         self._t.append(t)
         self._samples.append(sample)
@@ -58,16 +59,30 @@ class TrackRecorder:
 
     def track(self, sysid: int) -> list[TrackPoint]:
         column = self._column[sysid]
-        return [TrackPoint(t, sysid, float(s[0, column]), float(s[1, column]),
-                           float(s[2, column]), bool(s[3, column]))
-                for t, s in zip(self._t, self._samples, strict=True)]
+        return [
+            TrackPoint(
+                t,
+                sysid,
+                float(s[0, column]),
+                float(s[1, column]),
+                float(s[2, column]),
+                bool(s[3, column]),
+            )
+            for t, s in zip(self._t, self._samples, strict=True)
+        ]
 
     def final(self, sysid: int) -> TrackPoint | None:
         if not self._samples:
             return None
         column, s = self._column[sysid], self._samples[-1]
-        return TrackPoint(self._t[-1], sysid, float(s[0, column]), float(s[1, column]),
-                          float(s[2, column]), bool(s[3, column]))
+        return TrackPoint(
+            self._t[-1],
+            sysid,
+            float(s[0, column]),
+            float(s[1, column]),
+            float(s[2, column]),
+            bool(s[3, column]),
+        )
 
     def close(self) -> None:
         if self._log is not None:
@@ -101,8 +116,9 @@ class SeparationMonitor:
             self.pair = (int(self._sysids[index[i]]), int(self._sysids[index[j]]))
             self.midpoint_en = tuple((points[i] + points[j]) / 2)
 
-    def result(self, to_geodetic: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
-               ) -> Separation | None:
+    def result(
+        self, to_geodetic: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+    ) -> Separation | None:
         if self.pair is None:
             return None
         lat, lon = to_geodetic(np.array([self.midpoint_en[0]]), np.array([self.midpoint_en[1]]))

@@ -1,5 +1,8 @@
-"""Sockets on the asyncio loop: a UDP endpoint that answers every recent peer, and a TCP
-server that accepts several clients. Both hand raw bytes and a link key to a callback."""
+"""Sockets on the asyncio loop: a UDP endpoint that answers every recent peer, a TCP server
+that accepts several clients, and a UDP output that sends to a listening ground station
+(shared by every vehicle that names it). All hand raw bytes and a link key to callbacks.
+
+The peer list expires on wall-clock time: it is a socket matter, not vehicle behaviour."""
 
 from __future__ import annotations
 
@@ -37,7 +40,8 @@ class UdpEndpoint(asyncio.DatagramProtocol):
     async def open(cls, host: str, port: int, on_packet: PacketHandler) -> UdpEndpoint:
         loop = asyncio.get_running_loop()
         _, endpoint = await loop.create_datagram_endpoint(
-            lambda: cls(on_packet), local_addr=(host, port))
+            lambda: cls(on_packet), local_addr=(host, port)
+        )
         return endpoint
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
@@ -114,6 +118,61 @@ class TcpEndpoint:
             writer.close()
         if self._server is not None:
             await asyncio.wait_for(self._server.wait_closed(), timeout=2.0)
+
+
+class UdpOutput(asyncio.DatagramProtocol):
+    """`--out udp:HOST:PORT`: one socket that sends to a ground station listening there.
+
+    Several vehicles share it, as they share a MAVProxy output: the ground station sees
+    every system id arrive from one address and answers to it; what it sends back goes to
+    every vehicle on the output, and each keeps what is addressed to it (target_system).
+    """
+
+    def __init__(self, host: str, port: int) -> None:
+        self.host, self.port = host, port
+        self._listeners: list[PacketHandler] = []
+        self._transport: asyncio.DatagramTransport | None = None
+
+    @classmethod
+    async def open(cls, host: str, port: int) -> UdpOutput:
+        loop = asyncio.get_running_loop()
+        _, output = await loop.create_datagram_endpoint(
+            lambda: cls(host, port), remote_addr=(host, port)
+        )
+        return output
+
+    def subscribe(self, on_packet: PacketHandler) -> None:
+        self._listeners.append(on_packet)
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self._transport = transport  # type: ignore[assignment]
+
+    def datagram_received(self, data: bytes, addr: tuple) -> None:
+        for on_packet in self._listeners:
+            on_packet(data, ("out", self.host, self.port))
+
+    def error_received(self, exc: Exception) -> None:
+        """Nobody listening there yet (ICMP port unreachable): keep sending, as SITL does."""
+
+    def send(self, data: bytes) -> None:
+        if self._transport is not None:
+            self._transport.sendto(data)
+
+    async def close(self) -> None:
+        if self._transport is not None:
+            self._transport.close()
+
+
+def parse_output(text: str) -> tuple[str, int]:
+    """`udp:HOST:PORT` (MAVProxy's --out form; `udpout:` is accepted too) to (host, port)."""
+    kind, _, address = text.partition(":")
+    host, _, port = address.rpartition(":")
+    if kind not in ("udp", "udpout") or not host or not port.isdigit():
+        raise ValueError(f"expected udp:HOST:PORT, got {text!r}")
+    number = int(port)
+    if not 1 <= number <= 65535:
+        raise ValueError(f"port must be in 1..65535, got {number}")
+    return host, number
 
 
 async def open_endpoint(kind: str, host: str, port: int, on_packet: PacketHandler) -> Endpoint:

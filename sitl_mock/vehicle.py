@@ -1,101 +1,122 @@
-"""One simulated vehicle: decodes what arrives on its link, routes it to the parameter,
-mission and command handlers, and sends heartbeats and telemetry on simulated time."""
+"""One simulated vehicle: decodes what arrives on its links, routes it to the parameter,
+mission and command handlers, and sends heartbeats and telemetry.
+
+Two clocks drive it. Vehicle behaviour (physics, boot and readiness, idle disarm,
+telemetry rates) runs on simulated time, `clock`. Link-protocol timers (the mission
+protocol's re-requests and cancel, the command retry window) run on wall-clock time,
+`wall`, as a real autopilot's do: a ground station's step timeouts are wall-clock too,
+so a speed-up must not shrink them.
+"""
 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Hashable
-from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import ClassVar, TypeVar
 
 import numpy as np
 
 from . import messages
+from .boot import BootSequence
 from .codec import Decoder, Encoder, Message, Sender, mavlink
 from .commands import Command, CommandHandler
 from .faults import Faults, FaultyLink
-from .flavour import FLAVOURS
 from .flight import FlightController, Home
 from .kinematics import Body
 from .mission_item import MissionItem
-from .mission_store import DEFAULT_CAPACITY, MissionStore
+from .mission_store import MissionStore
+from .notices import Notices
 from .snapshot import VehicleState
-from .telemetry import TelemetrySchedule
+from .telemetry import UNASKED_ARDUPILOT_S, TelemetrySchedule
 from .transport import Endpoint
+from .vehicle_config import DEFAULT_HOME, VehicleConfig
 
-DEFAULT_HOME = (47.3977, 8.5456, 488.0)
+__all__ = ["DEFAULT_HOME", "Vehicle", "VehicleConfig"]
+
+T = TypeVar("T")
+
 REBOOT_SILENCE_S = 1.0  # shorter than the BOOT status, so a ground station sees it
-PREARM_REPEAT_S = 30.0
-PX4_REACHED_REPEAT_S = 1.0
 
 Geodetic = Callable[[int], tuple[float, float]]
 """Vehicle index → current (lat, lon)."""
 
 
-@dataclass
-class VehicleConfig:
-    """How to start one vehicle. `port=0` lets the OS pick a free port."""
-
-    sysid: int
-    port: int = 0
-    home: tuple[float, float, float] = DEFAULT_HOME
-    """lat, lon (degrees), alt (metres AMSL)."""
-    autopilot: str = "ardupilot"
-    transport: str = "udp"
-    faults: Faults = field(default_factory=Faults)
-    mission_capacity: int = DEFAULT_CAPACITY
-    estimate_delay_s: float = 5.0
-    """Simulated seconds after boot before the position estimate (and arming) is ready."""
-
-    def __post_init__(self) -> None:
-        if not 1 <= self.sysid <= 255:
-            raise ValueError(f"sysid must be in 1..255, got {self.sysid}")
-        if self.autopilot not in FLAVOURS:
-            raise ValueError(f"autopilot must be one of {sorted(FLAVOURS)}, got {self.autopilot!r}")
-        if self.transport not in ("udp", "tcp"):
-            raise ValueError(f"transport must be 'udp' or 'tcp', got {self.transport!r}")
-
-
 class Vehicle:
-    """Ties one vehicle's protocol handlers, flight controller and link together."""
+    """Ties one vehicle's protocol handlers, flight controller and links together."""
 
-    def __init__(self, config: VehicleConfig, body: Body, home_en: tuple[float, float],
-                 to_local: Callable[[float, float], tuple[float, float]], geodetic: Geodetic,
-                 clock: Callable[[], float], rng: np.random.Generator,
-                 stream_by_default: bool) -> None:
+    def __init__(
+        self,
+        config: VehicleConfig,
+        body: Body,
+        home_en: tuple[float, float],
+        to_local: Callable[[float, float], tuple[float, float]],
+        geodetic: Geodetic,
+        clock: Callable[[], float],
+        rng: np.random.Generator,
+        stream_by_default: bool,
+        wall: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.config = config
         self.sysid = config.sysid
-        self.flavour = FLAVOURS[config.autopilot]
+        self.flavour = config.flavour
         self.endpoint: Endpoint | None = None
+        """The vehicle's own server (UDP or TCP)."""
+        self.outputs: list[Endpoint] = []
+        """Ground stations it sends to (`--out`), shared with other vehicles."""
         self._body = body
         self._geodetic = geodetic
         self._now = clock
+        self._wall = wall
         self._stream_by_default = stream_by_default or self.flavour.streams_by_default
-        self._encoder = Encoder(self.sysid)
+        self._encoder = Encoder(self.sysid, key=config.signing_key)
         self._decoders: dict[Hashable, Decoder] = {}
+        self._rejected_before = 0
         self.link: FaultyLink = FaultyLink(config.faults, rng)
+        self.faults = config.faults
         self.params = self.flavour.new_params(self.sysid)
         lat, lon, alt = config.home
         home = Home(lat, lon, alt, *home_en)
         self.store = MissionStore(self.flavour, self, self._home_item, config.mission_capacity)
-        self.flight = FlightController(self.flavour, body, self.params, self.store, home,
-                                       to_local, self, self.say, config.estimate_delay_s)
-        self.schedule = TelemetrySchedule(self._stream_by_default,
-                                          messages.streamable(self.flavour))
-        self.commands = CommandHandler(self.flight, self.store, self.schedule,
-                                       self.current_changed)
+        self.notices = Notices(self.flavour, self.send, self.say)
+        self.flight = FlightController(
+            self.flavour,
+            body,
+            self.params,
+            self.store,
+            home,
+            to_local,
+            self,
+            self.say,
+            config.timeline(),
+        )
+        self.schedule = TelemetrySchedule(
+            self._stream_by_default,
+            messages.streamable(self.flavour),
+            UNASKED_ARDUPILOT_S if self.flavour.sends_unasked else None,
+        )
+        self.commands = CommandHandler(
+            self.flight,
+            self.store,
+            self.schedule,
+            self.current_changed,
+            lambda: self.faults,
+            self.say,
+        )
+        self.boot = BootSequence(self.flight, self.store, self.say, self._send_home)
         self.store.on_mission_changed = self._mission_changed
         self.store.on_current_changed = self.current_changed
-        self._boot_time = 0.0
         self._gcs_heard = False
-        self._next_prearm = 0.0
-        self._reached_repeat: tuple[int, float] | None = None
+        self._was_armed = False
+        self._held_texts: list[Message] | None = None
         self.set_faults(config.faults)
         self.flight.apply_limits()
+        self.boot.start(0.0)
 
     # -- control from the simulator -------------------------------------------------------
 
     def set_faults(self, faults: Faults) -> None:
+        self.faults = faults
         self.link.set_faults(faults)
         self.store.reject_at = faults.reject_at if faults.reject_missions else None
 
@@ -103,49 +124,65 @@ class Vehicle:
         self.link.silence(self._now() + seconds)
 
     def reboot(self) -> None:
-        """Silent for a couple of seconds, then back disarmed at home with no mission."""
+        """Silent for a second, then booting again: disarmed at home with no mission."""
         now = self._now()
         self.link.silence(now + REBOOT_SILENCE_S)
-        self._boot_time = now
+        self._rejected_before = self.rejected_packets
         self._decoders.clear()
         self._gcs_heard = False
-        self._reached_repeat = None
+        self._was_armed = False
         self.flight.reboot(now)
         self.store.reset()
         self.schedule.reset(self._stream_by_default, now)
         self.flight.apply_limits()
+        self.boot.start(now)
+        self.notices.reset(now)
 
     def mission(self, mission_type: int = 0) -> list[MissionItem]:
         return self.store.items(mission_type)
 
-    # -- the link -------------------------------------------------------------------------
+    @property
+    def rejected_packets(self) -> int:
+        """Packets dropped for a missing or wrong signature, since the simulator started."""
+        return self._rejected_before + sum(d.rejected for d in self._decoders.values())
+
+    # -- the links ------------------------------------------------------------------------
 
     def on_packet(self, data: bytes, link: Hashable) -> None:
-        """Bytes from the transport: decode, pass through the faults, handle."""
+        """Bytes from a transport: decode (checking signatures), pass the faults, handle."""
         decoder = self._decoders.get(link)
         if decoder is None:
-            decoder = self._decoders[link] = Decoder()
+            decoder = self._decoders[link] = Decoder(self.config.signing_key)
         now = self._now()
         for msg in decoder.decode(data):
             for delivered, via in self.link.inbound((msg, link), now):
                 self._handle(delivered, via, now)
 
     def send(self, msg: Message) -> None:
-        """Outbox: encode and send through the faults to every peer."""
-        if self.endpoint is None:
-            return
+        """Outbox: encode and send through the faults to every peer and output."""
         for data in self.link.outbound(self._encoder.encode(msg), self._now()):
-            self.endpoint.send(data)
+            self._transmit(data)
 
     def say(self, severity: int, text: str) -> None:
-        self.send(messages.statustext(severity, text))
+        msg = messages.statustext(severity, text)
+        if self._held_texts is not None:
+            self._held_texts.append(msg)  # said while answering a command: after its ACK
+        else:
+            self.send(msg)
+
+    def _transmit(self, data: bytes) -> None:
+        if self.endpoint is not None:
+            self.endpoint.send(data)
+        for output in self.outputs:
+            output.send(data)
 
     # -- mission events -------------------------------------------------------------------
 
-    def item_reached(self, seq: int) -> None:
-        self.send(mavlink.MAVLink_mission_item_reached_message(seq))
-        if self.flavour.repeats_item_reached:
-            self._reached_repeat = (seq, self._now() + PX4_REACHED_REPEAT_S)
+    def item_started(self, item: MissionItem) -> None:
+        self.notices.item_started(item)
+
+    def item_reached(self, item: MissionItem) -> None:
+        self.notices.item_reached(item)
 
     def current_changed(self) -> None:
         self.send(messages.mission_current(self.state(), self.flavour))
@@ -159,16 +196,31 @@ class Vehicle:
     # -- time -----------------------------------------------------------------------------
 
     def step(self, now: float) -> None:
+        self.boot.step(now)
         self.flight.update(now)
         inbound, outbound = self.link.release(now)
         for msg, via in inbound:
             self._handle(msg, via, now)
         for data in outbound:
-            if self.endpoint is not None:
-                self.endpoint.send(data)
-        self.store.tick(now)
+            self._transmit(data)
+        self.store.tick(self._wall())
+        self.notices.flush(now)
+        self._watch_arming()
         self._send_due_telemetry(now)
-        self._repeat_notices(now)
+        if self._gcs_heard:
+            self.notices.prearm(now, lambda: self.flight.prearm_texts(now))
+
+    def _watch_arming(self) -> None:
+        """ArduCopter sets home where it arms, and says so (HOME_POSITION, GPS_GLOBAL_ORIGIN)."""
+        armed = self.flight.armed
+        if armed and not self._was_armed and self.flavour.sends_unasked:
+            self._send_home()
+        self._was_armed = armed
+
+    def _send_home(self) -> None:
+        state = self.state()
+        self.send(messages.gps_global_origin(state, self.flavour))
+        self.send(messages.home_position(state, self.flavour))
 
     def _send_due_telemetry(self, now: float) -> None:
         due = self.schedule.due(now)
@@ -176,19 +228,9 @@ class Vehicle:
             return
         state = self.state()
         for msg_id in due:
-            if msg_id == mavlink.MAVLINK_MSG_ID_HOME_POSITION and not state.estimate_ready:
+            if msg_id in messages.NEEDS_HOME and not state.home_set:
                 continue
             self.send(messages.BUILDERS[msg_id](state, self.flavour))
-
-    def _repeat_notices(self, now: float) -> None:
-        if self._gcs_heard and now >= self._next_prearm:
-            text = self.flight.prearm_text(now)
-            if text is not None:
-                self.say(mavlink.MAV_SEVERITY_CRITICAL, text)
-            self._next_prearm = now + PREARM_REPEAT_S
-        if self._reached_repeat is not None and now >= self._reached_repeat[1]:
-            self.send(mavlink.MAVLink_mission_item_reached_message(self._reached_repeat[0]))
-            self._reached_repeat = None
 
     # -- state ----------------------------------------------------------------------------
 
@@ -196,33 +238,58 @@ class Vehicle:
         now = self._now()
         flight, flavour = self.flight, self.flavour
         lat, lon = self._geodetic(self._body.index)
-        alt = self._body.alt
         v_east, v_north, v_up = self._body.velocity
-        heading = math.degrees(math.atan2(v_east, v_north)) % 360 if math.hypot(
-            v_east, v_north) > 0.5 else 0.0
+        heading = (
+            math.degrees(math.atan2(v_east, v_north)) % 360
+            if math.hypot(v_east, v_north) > 0.5
+            else 0.0
+        )
         home = flight.home
         return VehicleState(
-            sysid=self.sysid, t=now, uptime=now - self._boot_time, lat=lat, lon=lon, alt=alt,
-            alt_amsl=home.alt_amsl + alt,
-            velocity_ned=(v_north, v_east, -v_up), heading_deg=heading, armed=flight.armed,
-            mode=flight.mode.value, custom_mode=flavour.modes.custom_mode(flight.mode),
+            sysid=self.sysid,
+            t=now,
+            uptime=flight.uptime(now),
+            lat=lat,
+            lon=lon,
+            alt=self._body.alt,
+            alt_amsl=home.alt_amsl + self._body.alt,
+            velocity_ned=(v_north, v_east, -v_up),
+            heading_deg=heading,
+            armed=flight.armed,
+            mode=flight.mode.value,
+            custom_mode=flavour.modes.custom_mode(flight.mode),
             base_mode=flavour.modes.base_mode(flight.mode, flight.armed),
-            system_status=self._system_status(now), landed_state=flight.landed_state,
-            mission_seq=self.store.current if self.store.total else 0,
-            mission_total=self.store.total, mission_state=int(flight.runner.state),
-            home=(home.lat, home.lon, home.alt_amsl), estimate_ready=flight.estimate_ready(now),
+            system_status=self._system_status(now),
+            landed_state=flight.landed_state,
+            mission_seq=self.store.reported_current,
+            mission_total=self.store.total,
+            mission_state=int(flight.runner.state),
+            home=(home.lat, home.lon, home.alt_amsl),
+            estimate_ready=flight.estimate_ready(now),
+            position_known=flight.position_known(now),
+            home_set=flight.home_set(now),
+            sensors=self.boot.sensors(now),
+            rejected_packets=self.rejected_packets,
         )
 
     def _system_status(self, now: float) -> int:
-        if now - self._boot_time < self.flavour.boot_status_s:
+        if self.flight.uptime(now) < self.flight.timeline.boot_status_s:
             return mavlink.MAV_STATE_BOOT
-        return mavlink.MAV_STATE_ACTIVE if self.flight.armed else mavlink.MAV_STATE_STANDBY
+        flying = self.flight.armed and (
+            self.flight.landed_state != mavlink.MAV_LANDED_STATE_ON_GROUND
+        )
+        return mavlink.MAV_STATE_ACTIVE if flying else mavlink.MAV_STATE_STANDBY
 
     def _home_item(self) -> MissionItem:
         home = self.flight.home
-        return MissionItem(seq=0, frame=mavlink.MAV_FRAME_GLOBAL,
-                           command=mavlink.MAV_CMD_NAV_WAYPOINT, x=round(home.lat * 1e7),
-                           y=round(home.lon * 1e7), z=home.alt_amsl)
+        return MissionItem(
+            seq=0,
+            frame=mavlink.MAV_FRAME_GLOBAL,
+            command=mavlink.MAV_CMD_NAV_WAYPOINT,
+            x=round(home.lat * 1e7),
+            y=round(home.lon * 1e7),
+            z=home.alt_amsl,
+        )
 
     # -- inbound messages -----------------------------------------------------------------
 
@@ -234,7 +301,7 @@ class Vehicle:
         sender = Sender(msg.get_srcSystem(), msg.get_srcComponent(), link)
         kind = msg.get_type()
         if kind.startswith("MISSION_"):
-            self.store.handle(msg, sender, now)
+            self.store.handle(msg, sender, self._wall())
             return
         handler = self._handlers.get(kind)
         if handler is not None:
@@ -242,19 +309,47 @@ class Vehicle:
 
     def _on_command(self, msg: Message, sender: Sender, now: float) -> None:
         command = Command.from_message(msg, sender)
-        outcome = self.commands.handle(command, now)
-        self.send(messages.command_ack(command.id, outcome.result, sender.sysid, sender.compid))
+        outcome = self._texts_after_ack(
+            lambda: self.commands.handle(command, now, self._wall()),
+            lambda outcome: messages.command_ack(
+                command.id, outcome.result, sender.sysid, sender.compid
+            ),
+        )
         for msg_id in outcome.then:
             self._send_by_id(msg_id)
+        if outcome.reboot:
+            self.reboot()
 
     def _on_set_mode(self, msg: Message, sender: Sender, now: float) -> None:
-        result = self.commands.set_mode(msg.base_mode, msg.custom_mode, now)
-        self.send(messages.command_ack(mavlink.MAVLINK_MSG_ID_SET_MODE, result, sender.sysid,
-                                       sender.compid))
+        self._texts_after_ack(
+            lambda: self.commands.set_mode(msg.base_mode, msg.custom_mode, now),
+            lambda result: messages.command_ack(
+                mavlink.MAVLINK_MSG_ID_SET_MODE, result, sender.sysid, sender.compid
+            ),
+        )
+
+    def _texts_after_ack(self, answer: Callable[[], T], ack: Callable[[T], Message]) -> T:
+        """Carry out a command, send its ACK, then what was said meanwhile: ArduPilot's
+        STATUSTEXTs about a command (arming checks, mode failures) follow its COMMAND_ACK."""
+        self._held_texts = []
+        try:
+            result = answer()
+        finally:
+            texts, self._held_texts = self._held_texts, None
+        self.send(ack(result))
+        for text in texts:
+            self.send(text)
+        return result
 
     def _on_request_data_stream(self, msg: Message, sender: Sender, now: float) -> None:
-        self.schedule.request_data_stream(msg.req_stream_id, msg.req_message_rate,
-                                          bool(msg.start_stop), now)
+        self.schedule.request_data_stream(
+            msg.req_stream_id, msg.req_message_rate, bool(msg.start_stop), now
+        )
+
+    def _on_timesync(self, msg: Message, sender: Sender, now: float) -> None:
+        """Answer a ground station's TIMESYNC request (tc1 0) with our clock in tc1."""
+        if msg.tc1 == 0:
+            self.send(mavlink.MAVLink_timesync_message(messages.nanoseconds(self.state()), msg.ts1))
 
     def _on_param_request_list(self, msg: Message, sender: Sender, now: float) -> None:
         for value in self.params.all_messages():
@@ -288,6 +383,7 @@ class Vehicle:
         "COMMAND_INT": _on_command,
         "SET_MODE": _on_set_mode,
         "REQUEST_DATA_STREAM": _on_request_data_stream,
+        "TIMESYNC": _on_timesync,
         "PARAM_REQUEST_LIST": _on_param_request_list,
         "PARAM_REQUEST_READ": _on_param_request_read,
         "PARAM_SET": _on_param_set,

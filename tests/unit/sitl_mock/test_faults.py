@@ -60,8 +60,10 @@ def test_silence_drops_both_ways_until_it_ends():
 
 
 def test_same_seed_same_choices():
-    runs = [send_all(FaultyLink(Faults(loss_out=0.5, reorder=0.2), np.random.default_rng(7)), 500)
-            for _ in range(2)]
+    runs = [
+        send_all(FaultyLink(Faults(loss_out=0.5, reorder=0.2), np.random.default_rng(7)), 500)
+        for _ in range(2)
+    ]
     assert runs[0] == runs[1]
 
 

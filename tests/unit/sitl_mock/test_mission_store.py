@@ -37,8 +37,22 @@ def make_store(flavour: Flavour = ARDUPILOT, capacity: int = 700) -> tuple[Missi
 
 def item(seq: int, command: int = 16, frame: int = 6, mission_type: int = 0, **kw):
     return mavlink.MAVLink_mission_item_int_message(
-        1, 1, seq, frame, command, 0, 1, kw.get("p1", 0), 0, 0, 0,
-        473977000 + seq * 1000, 85456000, 20.0, mission_type)
+        1,
+        1,
+        seq,
+        frame,
+        command,
+        0,
+        1,
+        kw.get("p1", 0),
+        0,
+        0,
+        0,
+        473977000 + seq * 1000,
+        85456000,
+        20.0,
+        mission_type,
+    )
 
 
 def count(n: int, mission_type: int = 0):
@@ -81,7 +95,8 @@ def test_px4_requests_with_request_int_and_has_no_home_item():
     store, out = make_store(PX4)
     sent = upload(store, out, 3)
     assert {m.get_type() for m in sent if m.get_type().startswith("MISSION_REQ")} == {
-        "MISSION_REQUEST_INT"}
+        "MISSION_REQUEST_INT"
+    }
     assert store.total == 3
     assert [i.seq for i in store.items()] == [0, 1, 2]
 
@@ -94,10 +109,13 @@ def test_too_many_items_is_no_space_and_keeps_the_mission():
     assert store.total == 2 and not store.uploading
 
 
-@pytest.mark.parametrize(("kwargs", "result"), [
-    ({"frame": mavlink.MAV_FRAME_LOCAL_NED}, mavlink.MAV_MISSION_UNSUPPORTED_FRAME),
-    ({"command": mavlink.MAV_CMD_DO_SET_SERVO}, mavlink.MAV_MISSION_UNSUPPORTED),
-])
+@pytest.mark.parametrize(
+    ("kwargs", "result"),
+    [
+        ({"frame": mavlink.MAV_FRAME_LOCAL_NED}, mavlink.MAV_MISSION_UNSUPPORTED_FRAME),
+        ({"command": mavlink.MAV_CMD_DO_SET_SERVO}, mavlink.MAV_MISSION_UNSUPPORTED),
+    ],
+)
 def test_bad_item_ends_the_upload_and_keeps_the_previous_mission(kwargs, result):
     store, out = make_store()
     upload(store, out, 3)

@@ -36,13 +36,17 @@ def test_tracks_per_vehicle_and_the_log_file(tmp_path):
     log = tmp_path / "track.jsonl"
     recorder = TrackRecorder([4, 7], log)
     for k in range(3):
-        recorder.record(k * 0.1, np.array([1.0, 2.0]), np.array([3.0, 4.0]),
-                        np.array([k, 10.0 * k]), np.array([True, False]))
+        recorder.record(
+            k * 0.1,
+            np.array([1.0, 2.0]),
+            np.array([3.0, 4.0]),
+            np.array([k, 10.0 * k]),
+            np.array([True, False]),
+        )
     recorder.close()
     track = recorder.track(7)
     assert [p.alt for p in track] == [0.0, 10.0, 20.0]
     assert recorder.final(4).armed is True and recorder.final(4).lat == 1.0
     lines = [json.loads(line) for line in log.read_text().splitlines()]
     assert len(lines) == 6
-    assert lines[-1] == {"t": 0.2, "sysid": 7, "lat": 2.0, "lon": 4.0, "alt": 20.0,
-                         "armed": False}
+    assert lines[-1] == {"t": 0.2, "sysid": 7, "lat": 2.0, "lon": 4.0, "alt": 20.0, "armed": False}
