@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gcs.mission_build import build_missions
-from gcs.mission_files import write_waypoints
-from gcs.mission_item import Autopilot, Mission
+from gcs.mavlink.mission_item import Autopilot, Mission
+from gcs.mission.build import build_missions
+from gcs.mission.files import write_waypoints
 from planner.cases import load_case
 from planner.pipeline import PlannerSettings, plan
 from sitl_mock import Simulator, VehicleConfig
