@@ -12,7 +12,7 @@ from __future__ import annotations
 import hashlib
 import time
 
-from .codec import mavlink
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 SIGNING_EPOCH = 1420070400
 """1 January 2015 UTC: MAVLink signing timestamps count 10 µs units from here."""

@@ -22,10 +22,12 @@ from gcs.fleet.member import Member
 from gcs.fleet.outcome import VehicleOutcome
 from gcs.fleet.route_tracker import RouteTracker, VehicleProgress
 from gcs.fleet.separation import SeparationTracker, SeparationWatch
+from gcs.mavlink import ardupilot
 from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Mission
 from gcs.mavlink.mission_protocol import MissionClient, UploadResult
+from gcs.mavlink.parameters import set_parameters
 from gcs.mission.build import Visit, fly_ideally, takeoff_index
 
 __all__ = ["Fallback", "Fleet", "FleetSettings", "FlightReport", "VehicleOutcome"]
@@ -83,8 +85,9 @@ class Fleet:
     # --- the flight, step by step -------------------------------------------------------
 
     async def upload(self) -> dict[str, VehicleOutcome[UploadResult]]:
-        """Every mission at once; each verified by reading it back."""
-        outcomes = await self.crew.each(lambda m: m.client.upload(m.mission), "upload")
+        """Every mission at once; each verified by reading it back, and on ArduPilot with
+        the parameters that carry what its stored items cannot (the acceptance radius)."""
+        outcomes = await self.crew.each(_upload, "upload")
         for uav, outcome in outcomes.items():
             self.crew.bus.publish(Uploaded(uav, outcome.ok, outcome.detail))
         return outcomes
@@ -160,6 +163,13 @@ class Fleet:
         if self.crew.watch is not None:
             self.crew.watch.close()
         self.crew.bus.close()
+
+
+async def _upload(member: Member) -> UploadResult:
+    result = await member.client.upload(member.mission)
+    if member.link.autopilot == Autopilot.ARDUPILOT:
+        await set_parameters(member.link, ardupilot.mission_parameters(member.mission))
+    return result
 
 
 def _member(

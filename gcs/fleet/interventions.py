@@ -20,7 +20,7 @@ async def hold(crew: Crew, uav_ids: Iterable[str] | None = None) -> dict[str, Ve
     chosen = set(crew.members if uav_ids is None else uav_ids)
     crew.holds.hold(chosen)
     crew.bus.publish(OperatorHeld(tuple(sorted(chosen))))
-    return await crew.each(lambda m: m.actions.hold(), "hold", chosen)
+    return await crew.each(lambda m: m.actions.hold(crew.started), "hold", chosen)
 
 
 async def continue_(
@@ -30,7 +30,7 @@ async def continue_(
     chosen = set(crew.members if uav_ids is None else uav_ids) - set(crew.withdrawn)
     moving = crew.holds.release(chosen)
     crew.bus.publish(OperatorContinued(tuple(sorted(chosen))))
-    outcomes = await crew.each(lambda m: m.actions.resume(), "continue", moving)
+    outcomes = await crew.each(lambda m: m.actions.proceed(), "continue", moving)
     waiting: dict[str, VehicleOutcome[None]] = {
         uav: VehicleOutcome(uav, True, "still paused by the schedule keeper")
         for uav in chosen - moving
@@ -64,7 +64,7 @@ async def fall_back(
 ) -> dict[str, VehicleOutcome[None]]:
     chosen = list(uav_ids)
     if fallback == Fallback.HOLD:
-        outcomes = await crew.each(lambda m: m.actions.hold(), "hold", chosen)
+        outcomes = await crew.each(lambda m: m.actions.hold(crew.started), "hold", chosen)
         return {uav: VehicleOutcome(uav, o.ok, o.detail) for uav, o in outcomes.items()}
     action: Callable[[Member], Awaitable[None]] = (
         (lambda m: m.actions.land())

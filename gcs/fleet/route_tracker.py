@@ -9,9 +9,10 @@ plan clock minus that plan time: positive when the vehicle is behind its schedul
 A visit is passed when the vehicle says so in any of the ways real autopilots do:
 MISSION_ITEM_REACHED for it or for a later item (ArduCopter merges the reports of items
 finished in one loop, so the take-off and a waypoint before a DO item may never be
-reported), MISSION_CURRENT beyond it, or, for the landing at the end, being disarmed on
-the ground at the landing point (ArduCopter reports no NAV_LAND and resets its mission
-to item 1 when it disarms).
+reported), MISSION_CURRENT beyond it, or being disarmed on the ground at the landing
+point, which passes every visit (ArduCopter reports no NAV_LAND and resets its mission
+to item 1 when it disarms; and a link that was down while the vehicle flew on missed
+the reports anyway).
 """
 
 from __future__ import annotations
@@ -78,15 +79,13 @@ class RouteTracker:
         """Indices of visits passed since the last call (for ItemReached events)."""
         clock = self.clock(state)
         last_reported = max(state.reached, default=-1)
+        if self.visits and self.visits[-1].lands and self._landed_at(self.visits[-1], state):
+            last_reported = self.visits[-1].seq  # down at the end: everything before is done
         fresh = []
         for k, visit in enumerate(self.visits):
             if k in self._passed_at:
                 continue
-            if (
-                visit.seq <= last_reported
-                or visit.seq < state.mission_seq
-                or (visit.lands and self._landed_at(visit, state))
-            ):
+            if visit.seq <= last_reported or visit.seq < state.mission_seq:
                 self._passed_at[k] = clock
                 fresh.append(k)
             else:

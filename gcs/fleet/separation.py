@@ -16,6 +16,10 @@ from dataclasses import dataclass
 from gcs.mavlink.link import VehicleLink
 from gcs.mission.geodesy import TangentPlane
 
+MAX_EXTRAPOLATION_S = 1.0
+"""Vehicle seconds a report may be carried forward; beyond that (a link outage) it says
+nothing of where the vehicle is now."""
+
 
 @dataclass
 class _Fix:
@@ -80,6 +84,8 @@ class SeparationTracker:
 
     def _compare(self, uav_id: str, fix: _Fix, other_id: str, other: _Fix) -> None:
         dt = (fix.wall - other.wall) * other.rate
+        if abs(dt) > MAX_EXTRAPOLATION_S:
+            return  # the other's last report is too old to say where it is now
         east = other.east + other.v_east * dt
         north = other.north + other.v_north * dt
         distance = math.hypot(fix.east - east, fix.north - north)

@@ -27,17 +27,8 @@ from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.modes import custom_mode, px4_main_sub
 
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-NOT_READY_HINTS = (
-    "prearm",
-    "need position",
-    "position estimate",
-    "requires position",
-    "mode change failed",
-    "ekf",
-    "gps",
-    "not ready",
-    "waiting",
-)
+DEFINITIVE_HINTS = ("not armable", "safety switch")
+"""Arming refusals that waiting does not cure (the mode, a switch only a person can press)."""
 
 
 @dataclass(frozen=True)
@@ -51,13 +42,19 @@ class ReadinessPolicy:
 
 
 def is_not_ready(exc: Exception) -> bool:
-    """An arming refusal that only means the vehicle is still initialising."""
-    if not isinstance(exc, CommandFailedError | CommandTemporarilyRejectedError):
+    """A refusal that only means "not yet": the vehicle is still initialising.
+
+    Real ArduCopter refuses its first arming attempts for a minute after boot with a
+    changing set of reasons ("Arm: Accels inconsistent", "Arm: Gyros inconsistent",
+    "Arm: AHRS: waiting for home", "PreArm: Need Position Estimate", ...), and GUIDED
+    before it has a position; so every FAILED or TEMPORARILY_REJECTED answer counts as
+    "not yet", within the readiness bound, unless its text says waiting cannot help."""
+    if isinstance(exc, CommandTemporarilyRejectedError):
+        return True
+    if not isinstance(exc, CommandFailedError):
         return False
     text = exc.statustext.lower()
-    return isinstance(exc, CommandTemporarilyRejectedError) or any(
-        hint in text for hint in NOT_READY_HINTS
-    )
+    return not any(hint in text for hint in DEFINITIVE_HINTS)
 
 
 class FlightActions:
@@ -106,19 +103,26 @@ class FlightActions:
             await self.command(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, altitude_m)
 
     async def arm_and_take_off(self, altitude_m: float) -> None:
-        """GUIDED, arm as soon as the vehicle can, take off; retried while "not ready"."""
+        """GUIDED and armed as soon as the vehicle can (retried while it is "not ready",
+        within the bound), then take off at once (an idle armed copter disarms)."""
         loop = asyncio.get_running_loop()
-        deadline = loop.time() + self.readiness.arm_timeout_s
+        bound = self.readiness.arm_timeout_s
+        deadline = loop.time() + bound
         while True:
             try:
                 await self.set_mode("GUIDED")
                 await self.arm()
-                await self.takeoff(altitude_m)
-                return
+                break
             except (CommandFailedError, CommandTemporarilyRejectedError) as exc:
-                if not is_not_ready(exc) or loop.time() > deadline:
+                if not is_not_ready(exc):
                     raise
+                if loop.time() > deadline:
+                    raise FlightError(
+                        f"vehicle {self.link.sysid} was not ready to arm within {bound:.0f} s; "
+                        f"it said last: {exc}"
+                    ) from exc
             await asyncio.sleep(self.readiness.arm_retry_period_s)
+        await self.takeoff(altitude_m)
 
     async def wait_altitude(self, altitude_m: float) -> None:
         """Until the vehicle reports at least `altitude_tolerance` of `altitude_m`."""
@@ -152,22 +156,31 @@ class FlightActions:
     async def resume(self) -> None:
         await self.command(mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, 1)
 
+    async def proceed(self) -> None:
+        """Go on with the mission after a hold: continue it if it was paused in AUTO, or
+        switch back to AUTO (which resumes at the current item) after a brake."""
+        if self.link.state.mode == "AUTO":
+            await self.resume()
+        else:
+            await self.set_mode("AUTO")
+
     async def return_to_launch(self) -> None:
         await self.set_mode("RTL")
 
     async def land(self) -> None:
         await self.set_mode("LAND")
 
-    async def hold(self) -> str:
+    async def hold(self, in_mission: bool = False) -> str:
         """Stop where it is, in whatever it is doing; says how.
 
-        In AUTO the mission is paused (DO_PAUSE_CONTINUE), so that continuing resumes it;
-        otherwise the vehicle brakes to a hover (ArduCopter BRAKE, PX4 AUTO.LOITER). A
-        vehicle disarmed on the ground is left alone."""
+        In a mission (AUTO, or `in_mission`: just told to start one, which its HEARTBEAT
+        may not show yet) the mission is paused (DO_PAUSE_CONTINUE), so that `proceed`
+        resumes it; otherwise the vehicle brakes to a hover (ArduCopter BRAKE, PX4
+        AUTO.LOITER). A vehicle disarmed on the ground is left alone."""
         state = self.link.state
         if state.down:
             return "on the ground, disarmed: nothing to hold"
-        if state.mode == "AUTO":
+        if in_mission or state.mode == "AUTO":
             await self.pause()
             return "mission paused"
         mode = "GUIDED" if self.link.autopilot == Autopilot.PX4 else "BRAKE"

@@ -21,21 +21,25 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs.mavlink import ardupilot
 from gcs.mavlink.errors import (
     MissionMismatchError,
     MissionRejectedError,
     MissionResult,
     MissionTimeoutError,
     MissionTransferError,
+    NoSpaceError,
     WaitTimeoutError,
     mission_error,
 )
 from gcs.mavlink.link import VehicleLink
-from gcs.mavlink.mission_item import Mission, MissionItem
+from gcs.mavlink.mission_item import Autopilot, Mission, MissionItem
 from gcs.mavlink.subscription import Subscription
+from gcs.mavlink.vehicle_state import MAV_STATE_BOOT
 
 MISSION_TYPE_MISSION = mavlink2.MAV_MISSION_TYPE_MISSION
 REQUESTS = ("MISSION_REQUEST", "MISSION_REQUEST_INT")  # real ArduPilot asks with 40
+BOOT_WAITS = 3  # NO_SPACE answers taken for "still booting" before one is believed
 
 
 @dataclass(frozen=True)
@@ -88,20 +92,40 @@ class MissionClient:
         self._check_flavour(mission)
         started = time.perf_counter()
         async with self._busy:
+            await self._until_booted()
             resends = await self._upload_with_retry(mission.items)
             if verify and mission.items:
                 self._verify(mission, await self._download())
         seconds = time.perf_counter() - started
         return UploadResult(self.link.sysid, len(mission), seconds, resends, verify)
 
+    async def _until_booted(self) -> None:
+        """A booting ArduPilot refuses every MISSION_COUNT with NO_SPACE (its mission
+        storage is not ready): wait for its HEARTBEAT to leave MAV_STATE_BOOT, bounded."""
+        link, bound = self.link, self.link.settings.boot_timeout_s
+        if not link.state.booting:
+            return
+        try:
+            await link.wait_for("HEARTBEAT", lambda hb: hb.system_status != MAV_STATE_BOOT, bound)
+        except WaitTimeoutError:
+            raise MissionTimeoutError(
+                f"vehicle {link.sysid} was still booting after {bound:.0f} s: no upload yet"
+            ) from None
+
     async def _upload_with_retry(self, items: tuple[MissionItem, ...]) -> int:
-        for attempt in range(1, self.policy.whole_transfer_attempts + 1):
+        attempt, boot_waits = 1, 0
+        while True:
             try:
                 return await self._upload_once(items)
-            except MissionRejectedError as exc:
-                if exc.definitive or attempt == self.policy.whole_transfer_attempts:
+            except NoSpaceError:
+                boot_waits += 1
+                if not self.link.state.booting or boot_waits > BOOT_WAITS:
                     raise
-        raise AssertionError("unreachable")
+                await self._until_booted()  # "not yet", not "too many items"
+            except MissionRejectedError as exc:
+                if exc.definitive or attempt >= self.policy.whole_transfer_attempts:
+                    raise
+                attempt += 1
 
     async def _upload_once(self, items: tuple[MissionItem, ...]) -> int:
         link, n = self.link, len(items)
@@ -179,7 +203,7 @@ class MissionClient:
         )
 
     def _verify(self, mission: Mission, read_back: tuple[MissionItem, ...]) -> None:
-        seq = mission.first_differing(read_back)
+        seq = first_mismatch(mission, read_back)
         if seq is None:
             return
         if len(read_back) != len(mission):
@@ -297,6 +321,20 @@ class MissionClient:
             f"vehicle {self.link.sysid} did not answer the {operation} within "
             f"{policy.stall_limit_s:.1f} s ({attempts} tries)"
         )
+
+
+def first_mismatch(sent: Mission, read_back: tuple[MissionItem, ...]) -> int | None:
+    """The first seq at which the vehicle holds something else than what it was sent, as
+    far as the autopilot keeps it: ArduPilot rebuilds its items (`ardupilot.same_stored`;
+    its seq 0 is its current home, not compared), PX4 keeps them as sent (float32)."""
+    if len(read_back) != len(sent):
+        return min(len(read_back), len(sent))
+    if sent.autopilot != Autopilot.ARDUPILOT:
+        return sent.first_differing(read_back)
+    for seq in range(1, len(sent)):
+        if not ardupilot.same_stored(sent.items[seq], read_back[seq]):
+            return seq
+    return None
 
 
 async def _next_or_none(sub: Subscription, timeout: float) -> Any:

@@ -87,6 +87,11 @@ class VehicleState:
         return self.armed and alt > 0.5
 
     @property
+    def booting(self) -> bool:
+        """The autopilot says it is still starting up (HEARTBEAT system_status BOOT)."""
+        return self.system_status == MAV_STATE_BOOT
+
+    @property
     def down(self) -> bool:
         """Disarmed on the ground, as far as the vehicle last said (and it said lately)."""
         return self.link_up and not self.armed and not self.airborne

@@ -14,8 +14,10 @@ time it reaches each item, which the fleet compares with the vehicle's progress.
 
 Waits are the waypoint's hold time (NAV_WAYPOINT param1), not NAV_LOITER_TIME: one item
 per turning point, so MISSION_ITEM_REACHED for a waypoint means "arrived here", and
-both autopilots read param1 as seconds to hover (PX4 as a float; ArduCopter stores
-whole seconds, so there a fractional hold is cut short by up to 1 s).
+both autopilots read param1 as seconds to hover. PX4 takes a float; ArduCopter keeps
+whole seconds, so for it each hold is rounded and the leg after it flown in the time
+left (`Route.whole_second_holds`): arrivals stay as planned, and only that leg is flown
+up to half a second (at most one) early or late.
 """
 
 from __future__ import annotations
@@ -67,6 +69,24 @@ class Route:
         """Cells per second of each leg, shape (k - 1,)."""
         length = np.hypot(*np.diff(self.xy, axis=0).T)
         return length / (self.arrive[1:] - self.arrive[:-1] - self.hold[:-1])
+
+    def whole_second_holds(self) -> Route:
+        """The route for an autopilot that holds for whole seconds only (ArduCopter keeps
+        NAV_WAYPOINT's hold as an integer): each hold rounded to the nearest second, the
+        leg after it flown in the time left, so every later arrival stays as planned.
+        A hold is rounded down instead where rounding up would make its leg faster than
+        the fastest leg of the route (the pace the flight was slowed to); the error is then
+        at most one second of the leg's speed, on that leg only."""
+        if len(self) == 1:
+            return Route(self.xy, self.arrive, np.rint(self.hold))
+        nearest, down = np.rint(self.hold), np.floor(self.hold + 1e-9)
+        legs = np.hypot(*np.diff(self.xy, axis=0).T)
+        left = self.arrive[1:] - self.arrive[:-1] - nearest[:-1]
+        fastest = float(np.max(self.speeds))
+        too_fast = (left <= 0) | (legs > fastest * (1 + SPEED_RTOL) * np.maximum(left, 1e-12))
+        hold = nearest.copy()
+        hold[:-1] = np.where(too_fast, down[:-1], nearest[:-1])
+        return Route(self.xy, self.arrive, hold)
 
     @classmethod
     def of(cls, trajectory: ArrayLike) -> Route:
@@ -171,6 +191,8 @@ def build_mission(
     if acceptance_radius_m is not None and acceptance_radius_m < 0:
         raise ValueError(f"acceptance_radius_m must not be negative, got {acceptance_radius_m}")
     route = Route.of(trajectory)
+    if autopilot == Autopilot.ARDUPILOT:
+        route = route.whole_second_holds()
     lat, lon = frame.to_geodetic(route.xy[:, 0], route.xy[:, 1])
     x, y = to_e7(lat), to_e7(lon)
     radius = acceptance_radius_m or 0.0  # 0: the autopilot's default radius

@@ -14,8 +14,8 @@ import pytest
 
 from gcs.fleet.events import Aborted, ItemReached, StartCancelled
 from gcs.fleet.fleet import Fallback, Fleet, FleetSettings
-from gcs.mavlink import client
 from gcs.mavlink.actions import ReadinessPolicy
+from gcs.mavlink.link import LinkSettings
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.build import build_missions
 from planner.cases import load_case
@@ -63,11 +63,11 @@ async def test_a_planned_flight_keeps_its_separation(simulator, name: str) -> No
     )
 
 
-async def _fleet(sim, scenario: Scenario, the_plan: Plan, settings: FleetSettings) -> Fleet:
+async def _fleet(sim, links, scenario: Scenario, the_plan: Plan, settings: FleetSettings) -> Fleet:
+    """A fleet on `sim`'s vehicles; the `links` fixture closes the links after the test."""
     missions = build_missions(the_plan, scenario, Autopilot.ARDUPILOT, altitude_m=10.0)
-    links = await asyncio.gather(
-        *(client.connect(sim.connection_string(k)) for k in range(1, len(scenario.uavs) + 1))
-    )
+    connect = [links(sim, k, settings=LinkSettings()) for k in range(1, len(scenario.uavs) + 1)]
+    links = await asyncio.gather(*connect)
     return Fleet(
         {u.id: link for u, link in zip(scenario.uavs, links, strict=True)},
         missions,
@@ -75,42 +75,43 @@ async def _fleet(sim, scenario: Scenario, the_plan: Plan, settings: FleetSetting
     )
 
 
-async def test_a_rejected_mission_leaves_every_vehicle_on_the_ground(simulator) -> None:
+async def test_a_rejected_mission_leaves_every_vehicle_on_the_ground(simulator, links) -> None:
     scenario, the_plan = planned("case-2")
     sim = simulator(vehicles_at_starts(scenario), speedup=SPEEDUP)
     sim.set_faults(2, Faults(reject_missions=True))
-    fleet = await _fleet(sim, scenario, the_plan, FleetSettings())
+    fleet = await _fleet(sim, links, scenario, the_plan, FleetSettings())
     report = await fleet.fly()
     assert not report.completed and "uav2" in report.failed
     assert "refused the upload" in report.failed["uav2"]
     assert not any(sim.state(k).armed for k in (1, 2))
 
 
-async def test_a_vehicle_failing_before_the_start_starts_nobody(simulator) -> None:
+async def test_a_vehicle_failing_before_the_start_starts_nobody(simulator, links) -> None:
     scenario, the_plan = planned("case-2")
     configs = vehicles_at_starts(scenario)
     from dataclasses import replace
 
+    configs[0] = replace(configs[0], estimate_delay_s=1.0, position_delay_s=0.5)  # ready soon
     configs[1] = replace(configs[1], estimate_delay_s=10_000.0)  # never ready to arm
     sim = simulator(configs, speedup=SPEEDUP)
     settings = FleetSettings(
         fallback=Fallback.LAND, readiness=ReadinessPolicy(arm_timeout_s=1.0, arm_retry_period_s=0.1)
     )
-    fleet = await _fleet(sim, scenario, the_plan, settings)
+    fleet = await _fleet(sim, links, scenario, the_plan, settings)
     events = []
     listener = asyncio.create_task(_collect(fleet, events))
     report = await fleet.fly()
     await asyncio.wait_for(listener, 2.0)
-    assert not report.completed and "position" in report.failed["uav2"]
+    assert not report.completed and "need position estimate" in report.failed["uav2"].lower()
     assert any(isinstance(e, StartCancelled) and e.failed == ("uav2",) for e in events)
-    assert not sim.state(1).armed  # nobody arms unless every vehicle is at its start
     assert all(sim.state(k).mission_state != 3 for k in (1, 2))  # no mission active
+    assert sim.wait_until(lambda: not sim.state(1).armed, timeout=30.0)  # uav1 landed
 
 
-async def test_abort_brings_every_vehicle_down(simulator) -> None:
+async def test_abort_brings_every_vehicle_down(simulator, links) -> None:
     scenario, the_plan = planned("case-1")
     sim = simulator(vehicles_at_starts(scenario), speedup=SPEEDUP)
-    fleet = await _fleet(sim, scenario, the_plan, FleetSettings())
+    fleet = await _fleet(sim, links, scenario, the_plan, FleetSettings())
     for step in (fleet.upload, fleet.prepare, fleet.start):
         assert all(o.ok for o in (await step()).values())
     events = []
@@ -133,7 +134,7 @@ async def _collect(fleet: Fleet, into: list) -> None:
         into.append(event)
 
 
-async def test_a_vehicle_away_from_its_start_starts_nobody(simulator) -> None:
+async def test_a_vehicle_away_from_its_start_starts_nobody(simulator, links) -> None:
     scenario, the_plan = planned("case-1")
     configs = vehicles_at_starts(scenario)
     lat, lon, alt = configs[0].home
@@ -141,7 +142,7 @@ async def test_a_vehicle_away_from_its_start_starts_nobody(simulator) -> None:
 
     configs[0] = replace(configs[0], home=(lat + 1e-4, lon, alt))  # 11 m north of its start
     sim = simulator(configs, speedup=SPEEDUP)
-    fleet = await _fleet(sim, scenario, the_plan, FleetSettings(fallback=Fallback.HOLD))
+    fleet = await _fleet(sim, links, scenario, the_plan, FleetSettings(fallback=Fallback.HOLD))
     report = await fleet.fly()
     assert not report.completed and "from its start" in report.failed["uav1"]
     assert not any(sim.state(k).armed for k in (1, 2))

@@ -62,7 +62,7 @@ async def test_a_reboot_is_detected(simulator, links) -> None:
     sim = simulator([vehicle(1)], speedup=20.0)
     link = await links(sim, 1)
     await MissionClient(link).upload(square_mission(link.autopilot))
-    await asyncio.sleep(0.2)  # the link learns the heartbeat rate
+    await _until(lambda: link.heartbeat_period_s is not None, 10.0)  # it knows the rate
     sim.reboot(1)
     await _until(lambda: link.state.reboots > 0, 5.0)
     assert link.state.reboots == 1

@@ -4,7 +4,6 @@ protocol's failure modes (numbers as in the MAVLink notes)."""
 from __future__ import annotations
 
 import asyncio
-import time
 from dataclasses import replace
 
 import pytest
@@ -20,7 +19,8 @@ from gcs.mavlink.errors import (
     NoSpaceError,
 )
 from gcs.mavlink.mission_item import Autopilot, Command, Mission, MissionItem
-from gcs.mavlink.mission_protocol import MissionClient, TransferPolicy
+from gcs.mavlink.mission_protocol import MissionClient, TransferPolicy, first_mismatch
+from gcs.mavlink.vehicle_state import MAV_STATE_BOOT
 from sitl_mock import Faults, VehicleConfig
 
 from .conftest import CMAC, FAST_LINK, square_mission, vehicle
@@ -50,7 +50,7 @@ async def test_upload_download_set_current_and_clear(simulator, links, autopilot
     result = await client.upload(mission)
     assert result.verified and result.items == len(mission)
     assert [i.command for i in sim.mission(1)][-1] == Command.NAV_LAND
-    assert mission.first_differing(await client.download()) is None
+    assert first_mismatch(mission, await client.download()) is None
     await client.set_current(3)
     assert sim.state(1).mission_seq == 3
     await client.clear()
@@ -85,9 +85,9 @@ async def test_an_empty_mission_does_not_hang(simulator, links, autopilot: str) 
     link = await links(sim, 1)
     client = MissionClient(link)
     await client.upload(square_mission(link.autopilot))
-    started = time.perf_counter()
-    await asyncio.wait_for(client.upload(Mission((), link.autopilot)), timeout=2.0)
-    assert time.perf_counter() - started < 0.5
+    sent = sent_types(link)
+    await asyncio.wait_for(client.upload(Mission((), link.autopilot)), timeout=30.0)
+    assert sent.count("MISSION_COUNT") == 1  # answered at once, nothing re-sent
     assert not sim.mission(1)[1:]
 
 
@@ -101,7 +101,6 @@ async def test_timeouts_are_settable(simulator, links) -> None:
     )
     with pytest.raises(MissionTimeoutError):
         await impatient.upload(mission)
-    await asyncio.sleep(0.5)  # let the abandoned exchange's answers drain
     patient = MissionClient(link, TransferPolicy(step_timeout_s=1.0, item_timeout_s=0.5))
     assert (await patient.upload(mission)).verified
 
@@ -207,13 +206,12 @@ async def test_every_wait_is_bounded(simulator, links) -> None:
     """Failure mode 8: a vehicle gone silent mid-upload ends in an error, not a hang."""
     sim = simulator([vehicle(1)])
     link = await links(sim, 1)
-    sim.silence(1, seconds=200.0)
-    started = time.perf_counter()
-    with pytest.raises((LinkLostError, MissionTimeoutError)):
-        await MissionClient(link).upload(square_mission(link.autopilot))
-    with pytest.raises((LinkLostError, MissionTimeoutError)):
-        await MissionClient(link).download()
-    assert time.perf_counter() - started < 5.0
+    sim.silence(1, seconds=2000.0)
+    async with asyncio.timeout(60):  # a hang detector, far above the protocol's own bounds
+        with pytest.raises((LinkLostError, MissionTimeoutError)):
+            await MissionClient(link).upload(square_mission(link.autopilot))
+        with pytest.raises((LinkLostError, MissionTimeoutError)):
+            await MissionClient(link).download()
 
 
 async def test_another_ground_station_mid_upload_is_denied_without_retrying(simulator, links):
@@ -221,25 +219,32 @@ async def test_another_ground_station_mid_upload_is_denied_without_retrying(simu
     sim = simulator([vehicle(1)])
     link = await links(sim, 1)
     other_gcs = await links(sim, 1)
-    other_gcs.send(other_gcs.codec.mission_count_encode(1, 1, 5, 0))  # and never answers
-    await asyncio.sleep(0.05)
+    await until_booted(link)
+    with other_gcs.subscribe(["MISSION_REQUEST", "MISSION_REQUEST_INT"]) as asked:
+        other_gcs.send(other_gcs.codec.mission_count_encode(1, 1, 5, 0))  # and never answers
+        await asked.get(10.0)  # the vehicle is now busy with the other ground station
     sent = sent_types(link)
-    started = time.perf_counter()
     with pytest.raises(MissionDeniedError, match="another ground station"):
         await MissionClient(link).upload(square_mission(link.autopilot))
-    assert time.perf_counter() - started < 0.5
     assert sent.count("MISSION_COUNT") == 1
 
 
 async def test_a_reboot_mid_upload_ends_in_a_clear_error(simulator, links) -> None:
     sim = simulator([vehicle(1, faults=Faults(latency_s=0.5))], speedup=20.0)
     link = await links(sim, 1)
-    await asyncio.sleep(0.2)
-    upload = asyncio.create_task(MissionClient(link).upload(square_mission(link.autopilot, 30)))
-    await asyncio.sleep(0.3)
+    await until_booted(link)
+    with link.subscribe(["MISSION_REQUEST", "MISSION_REQUEST_INT"]) as asked:
+        upload = asyncio.create_task(MissionClient(link).upload(square_mission(link.autopilot, 30)))
+        await asked.get(10.0)  # items are flowing
     sim.reboot(1)
     with pytest.raises(GcsError) as caught:
         await asyncio.wait_for(upload, timeout=12.0)
     assert "reboot" in str(caught.value) or isinstance(caught.value, MissionTimeoutError)
     state = sim.state(1)
     assert not state.armed and not sim.mission(1)[1:]
+
+
+async def until_booted(link) -> None:
+    """Until the vehicle's HEARTBEAT leaves BOOT (it refuses uploads while booting)."""
+    if link.state.booting:
+        await link.wait_for("HEARTBEAT", lambda hb: hb.system_status != MAV_STATE_BOOT, 30.0)

@@ -89,6 +89,14 @@ def test_prearm_failures_mean_not_ready_yet_but_other_failures_do_not() -> None:
     assert is_not_ready(to_command_error(1, 400, 1))
     assert not is_not_ready(to_command_error(1, 400, 4, "Arm: Mode not armable"))
     assert not is_not_ready(to_command_error(1, 400, 2, "PreArm: whatever"))
+    seen_on_sitl = (
+        "Arm: Accels inconsistent",
+        "Arm: Gyros inconsistent; Arm: EKF attitude is bad",
+        "Arm: AHRS: waiting for home",
+        "Arm: System not initialised",
+    )
+    assert all(is_not_ready(to_command_error(1, 400, 4, text)) for text in seen_on_sitl)
+    assert not is_not_ready(to_command_error(1, 400, 4, "Arm: Hardware safety switch"))
 
 
 def _state(autopilot: int = 3) -> VehicleState:

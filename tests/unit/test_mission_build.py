@@ -110,9 +110,40 @@ frames = st.builds(
 def test_flying_the_mission_reproduces_the_trajectory(
     case: tuple[np.ndarray, float], frame: GridFrame, autopilot: Autopilot, finish: str
 ) -> None:
+    """PX4 flies the plan's own timing; ArduCopter the same route with whole-second holds."""
     points, cruise = case
     mission = build_mission(points, cruise, frame, autopilot, finish=finish)
-    assert_flies_like(Trajectory(points), mission, frame)
+    route = Route.of(points)
+    if autopilot == Autopilot.ARDUPILOT:
+        route = route.whole_second_holds()
+    assert_flies_like(Trajectory(route_points(route)), mission, frame)
+
+
+def route_points(route: Route) -> np.ndarray:
+    """A route as `[t, x, y]` rows: each place on arrival and, after a hold, on leaving."""
+    rows = []
+    for (x, y), arrive, hold in zip(route.xy, route.arrive, route.hold, strict=True):
+        rows.append((arrive, x, y))
+        if hold > 0:
+            rows.append((arrive + hold, x, y))
+    return np.array(rows)
+
+
+@settings(max_examples=150, deadline=None)
+@given(trajectories())
+def test_whole_second_holds_keep_every_arrival_and_the_pace(
+    case: tuple[np.ndarray, float],
+) -> None:
+    route = Route.of(case[0])
+    rounded = route.whole_second_holds()
+    assert np.array_equal(rounded.arrive, route.arrive)
+    assert np.array_equal(rounded.hold, np.round(rounded.hold))
+    assert np.all(np.abs(rounded.hold - route.hold) < 1.0)
+    if len(route) > 1:
+        assert np.max(rounded.speeds) <= np.max(route.speeds) * (1 + 1e-4)
+    planned, flown = Trajectory(route_points(route)), Trajectory(route_points(rounded))
+    fastest = float(np.max(route.speeds)) if len(route) > 1 else 0.0
+    assert max_deviation(planned, flown) <= fastest * 1.0 + 1e-9  # one second at most
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -171,12 +202,22 @@ def test_px4_has_no_home_item_and_rtl_ends_after_the_last_waypoint() -> None:
 
 def test_schedule_gives_each_nav_item_its_plan_time() -> None:
     points = [[0, 0, 0], [1.5, 0, 0], [4.5, 3, 0], [5.5, 3, 0], [7.5, 3, 2]]
-    mission = build_mission(points, 1.0, CANBERRA, Autopilot.ARDUPILOT)
+    mission = build_mission(points, 1.0, CANBERRA, Autopilot.PX4)
     schedule = mission_schedule(mission)
-    # seq 3: the hover at the start; 4: (3, 0) hold 1 s; 5: land at (3, 2)
-    assert list(schedule) == [3, 4, 5]
-    assert [schedule[s] for s in (3, 4, 5)] == pytest.approx([0.0, 4.5, 7.5], abs=1e-3)
+    # seq 2: the hover at the start; 3: (3, 0) hold 1 s; 4: land at (3, 2)
+    assert list(schedule) == [2, 3, 4]
+    assert [schedule[s] for s in (2, 3, 4)] == pytest.approx([0.0, 4.5, 7.5], abs=1e-3)
     assert fly_ideally(mission)[1].leave == pytest.approx(5.5, abs=1e-3)
+
+
+def test_an_ardupilot_schedule_holds_whole_seconds_and_arrives_on_time() -> None:
+    """The 1.5 s hover at the start becomes 1 s (2 s would make the next leg too fast);
+    that leg is then flown slower, so (3, 0) is still reached at 4.5 s."""
+    points = [[0, 0, 0], [1.5, 0, 0], [4.5, 3, 0], [5.5, 3, 0], [7.5, 3, 2]]
+    mission = build_mission(points, 1.0, CANBERRA, Autopilot.ARDUPILOT)
+    visits = fly_ideally(mission)
+    assert [v.leave - v.arrive for v in visits] == pytest.approx([1.0, 1.0, 0.0], abs=1e-6)
+    assert [v.arrive for v in visits] == pytest.approx([0.0, 4.5, 7.5], abs=1e-3)
 
 
 def test_route_keeps_turns_speed_changes_and_hovers_only() -> None:

@@ -1,0 +1,57 @@
+"""The parameter protocol, client side: set one parameter and see the vehicle confirm it.
+
+PARAM_SET is answered by a PARAM_VALUE with the parameter's new value (or its old one,
+if the vehicle refused); it is re-sent while no answer comes, within a bound.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from typing import Any
+
+import numpy as np
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs.mavlink.errors import GcsError, WaitTimeoutError
+from gcs.mavlink.link import VehicleLink
+
+ANSWER_TIMEOUT_S = 1.0
+ATTEMPTS = 4
+
+
+class ParameterError(GcsError):
+    """A parameter the vehicle did not take."""
+
+
+async def set_parameter(link: VehicleLink, name: str, value: float) -> float:
+    """Set `name` to `value` (a REAL32 parameter); the value the vehicle now holds."""
+    encoded = name.encode()
+    message = link.codec.param_set_encode(
+        link.sysid, link.compid, encoded, float(value), mavlink2.MAV_PARAM_TYPE_REAL32
+    )
+    link.ensure_up()
+    with link.subscribe(["PARAM_VALUE"]) as sub:
+        for _ in range(ATTEMPTS):
+            link.send(message)
+            try:
+                answer = await sub.next_matching(lambda m: _named(m) == name, ANSWER_TIMEOUT_S)
+            except WaitTimeoutError:
+                continue
+            held = float(answer.param_value)
+            if not math.isclose(held, float(np.float32(value)), rel_tol=1e-6, abs_tol=1e-6):
+                raise ParameterError(f"vehicle {link.sysid} kept {name} = {held} (asked {value})")
+            return held
+    raise ParameterError(
+        f"vehicle {link.sysid} did not confirm {name} = {value} after {ATTEMPTS} tries"
+    )
+
+
+async def set_parameters(link: VehicleLink, values: dict[str, float]) -> None:
+    await asyncio.gather(*(set_parameter(link, name, v) for name, v in values.items()))
+
+
+def _named(msg: Any) -> str:
+    raw = msg.param_id
+    text = raw if isinstance(raw, str) else bytes(raw).decode(errors="replace")
+    return text.rstrip("\x00")
