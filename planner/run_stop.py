@@ -1,8 +1,11 @@
 """When one optimizer run stops: at its iteration budget, on convergence, or at the deadline.
 
 A run has converged when its best cost has not improved by more than `tolerance`
-(relative) for `patience` iterations in a row. Without patience it runs all of its
-iterations unless the time budget ends it first.
+(relative) for `patience` iterations in a row. A run that only has to make a UAV safe
+(`safe_below`: every cost below it is a safe path) converges sooner, after
+`safe_patience` iterations without gain once its best is safe: the improvement phase
+shortens the path later. Without patience a run does all of its iterations unless the
+time budget ends it first.
 """
 
 from __future__ import annotations
@@ -17,6 +20,8 @@ class RunStop:
     budget: Budget
     patience: int | None
     tolerance: float = 1e-6
+    safe_below: float | None = None
+    safe_patience: int = 10
     reason: StopReason = "iterations"
     _best: float = float("inf")
     _since: int = 0
@@ -32,7 +37,10 @@ class RunStop:
         if self.budget.expired():
             self.reason = "budget"
             return True
-        if self.patience is not None and self._since >= self.patience:
+        if self.patience is None:
+            return False
+        safe = self.safe_below is not None and self._best < self.safe_below
+        if self._since >= (min(self.patience, self.safe_patience) if safe else self.patience):
             self.reason = "converged"
             return True
         return False
