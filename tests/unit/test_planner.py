@@ -83,10 +83,10 @@ def test_wormhole_replans_only_the_uavs_an_object_touches() -> None:
             {"id": "far", "start": [0, 8], "goal": [9, 8]},
         ],
     }
-    without = plan(load_scenario(base), PlannerSettings(**FAST))
-    with_object = plan(
-        load_scenario({**base, "non_uav_objects": [[5, 2]]}), PlannerSettings(**FAST)
-    )
+    # Algorithm 1's rule alone: the improvement phase after it may shorten any UAV's path.
+    settings = PlannerSettings(**FAST, improve_rounds=0)
+    without = plan(load_scenario(base), settings)
+    with_object = plan(load_scenario({**base, "non_uav_objects": [[5, 2]]}), settings)
     near, far = with_object.uavs
     assert near.replanned == ["non-UAV object"] and far.replanned == []
     assert far.trajectory == without.uavs[1].trajectory
@@ -171,4 +171,5 @@ def test_iterations_only_runs_every_iteration_of_every_run() -> None:
 def test_every_optimizer_drives_either_objective(algorithm: str, objective: str) -> None:
     result = plan(load_case("case-1"), PlannerSettings(algorithm, objective, 3, 10, 40))
     assert result.algorithm == algorithm and result.objective == objective
-    assert result.feasible and result.metrics.nfe == result.metrics.replans * 10 * 40
+    m = result.metrics  # runs may end early (converged), never late
+    assert result.feasible and m.nfe == 10 * m.iterations_run <= m.replans * 10 * 40
