@@ -31,7 +31,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.black_hole import Search, search_path
+from planner.black_hole import Search, search_path, wait_probe
 from planner.budget import Budget, StopReason
 from planner.clearance import ClearanceField
 from planner.conflict_table import NEAR, ConflictTable
@@ -285,6 +285,11 @@ class _Planning:
             return False
         search = self.search(uav, world, encoding.region())
         before = self.current_cost(uav, world)
+        if self.probing(reason) and isinstance(encoding, DetourEncoding):
+            probe = wait_probe(encoding, search)
+            self.nfe += probe.evaluations
+            if probe.safe and probe.cost < before and self.keep(uav, probe.trajectory, reason):
+                return True
         # The others' costs leave out their conflicts with `uav`: its own cost counts them.
         others = self.others_cost(uav, world)
         self.runs += 1
@@ -324,11 +329,26 @@ class _Planning:
             uav, outcome.trajectory, spec.radius, world.blocked
         ):  # the search reads clearance from a raster; the exact check has the last word
             return False
+        return self.keep(uav, outcome.trajectory, reason)
+
+    def probing(self, reason: str) -> bool:
+        """The anytime mode (qos with an improvement phase) tries a hover before a search
+        when a UAV must be made safe: the improvement phase shortens it later."""
+        anytime = self.settings.objective == "qos" and self.settings.improve_rounds > 0
+        return anytime and reason != IMPROVEMENT
+
+    def keep(self, uav: str, trajectory: Trajectory, reason: str) -> bool:
+        """`uav` flies `trajectory` from now on, unless (improving or probing) the exact
+        check finds more conflicts for it than before, or it enters a blocked cell."""
+        spec = self.specs[uav]
+        if cell_conflicts(uav, trajectory, spec.radius, self.table.blocked):
+            return False
         old = self.paths[uav]
         conflicts = len(self.table.collision_paths(uav))
-        self.paths[uav] = outcome.trajectory
-        self.table.update(uav, outcome.trajectory)
-        if reason == IMPROVEMENT and len(self.table.collision_paths(uav)) > conflicts:
+        self.paths[uav] = trajectory
+        self.table.update(uav, trajectory)
+        strict = reason == IMPROVEMENT or self.probing(reason)
+        if strict and len(self.table.collision_paths(uav)) > conflicts:
             self.paths[uav] = old  # cheaper by the sampled cost, but not by the exact check
             self.table.update(uav, old)
             return False

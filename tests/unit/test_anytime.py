@@ -132,3 +132,44 @@ def test_the_conflict_table_agrees_with_the_exact_check(paths, moved: int, seed:
     exact = {frozenset(c.uavs) for c in uav_conflicts(paths, radii)[0]}
     assert set(table.pairs) == exact
     assert table.clear() == check_plan(paths, radii, blocked).safe
+
+
+def test_pymapf_references_are_judged_by_our_check_and_never_too_fast() -> None:
+    from planner.references import judge
+    from planner.references.pymapf_solvers import plan_lacam, plan_pymapf_prioritized
+
+    scenario = crossing_scenario(4)
+    for result in (
+        plan_lacam(scenario, 2.0),
+        plan_lacam(scenario, 2.0, diagonals=True),
+        plan_pymapf_prioritized(scenario, 2.0),
+    ):
+        verdict = judge(scenario, result)
+        assert result.solved and verdict["max_speed_ratio"] <= 1 + 1e-9
+        assert verdict["feasible"] == (verdict["safe"] and verdict["mean_deviation"] == 0)
+
+
+def test_a_hover_probe_lets_a_uav_wait_for_another_to_pass() -> None:
+    from planner.black_hole import Search, wait_probe
+    from planner.clearance import ClearanceField
+    from planner.objectives import QosObjective
+    from planner.path_cost import Traffic
+    from planner.path_encoding import DetourEncoding
+
+    crossing = Trajectory.from_waypoints([(4, 0), (4, 8)], 1.0)  # passes (4, 4) at t = 4
+    encoding = DetourEncoding.around(np.array([(0.0, 4.0), (8.0, 4.0)]), max_wait=8.0)
+    traffic = Traffic.around(
+        [(crossing, 0.3, 1.0)],
+        radius=0.3,
+        speed=1.0,
+        start=np.array([0.0, 4.0]),
+        lower=np.array([-2.0, 2.0]),
+        upper=np.array([10.0, 6.0]),
+    )
+    field = ClearanceField.build(np.zeros((9, 9), dtype=bool))
+    search = Search(1.0, 0.3, np.array([8.0, 4.0]), traffic, field, QosObjective(1.0, 1e4))
+    probe = wait_probe(encoding, search)
+    assert probe.safe and probe.trajectory.end_time > 8.0  # it waited
+    assert check_plan(
+        {"a": probe.trajectory, "b": crossing}, {"a": 0.3, "b": 0.3}, np.zeros((9, 9), dtype=bool)
+    ).safe
