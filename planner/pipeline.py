@@ -22,6 +22,7 @@ same plan, bit for bit.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import time
 from collections import Counter
@@ -105,8 +106,8 @@ class _Map:
     blocked: NDArray[np.bool_]
     graph: GridGraph
     field: ClearanceField
-    routes: dict[tuple[tuple[int, int], tuple[int, int]], list[tuple[int, int]] | None] = field(
-        default_factory=dict
+    routes: dict[tuple[tuple[int, int], tuple[int, int]], list[tuple[int, int]] | None] = (
+        dataclasses.field(default_factory=dict)  # `field` is taken by the clearance field
     )
 
     @classmethod

@@ -173,3 +173,16 @@ def test_a_hover_probe_lets_a_uav_wait_for_another_to_pass() -> None:
     assert check_plan(
         {"a": probe.trajectory, "b": crossing}, {"a": 0.3, "b": 0.3}, np.zeros((9, 9), dtype=bool)
     ).safe
+
+
+def test_the_fleet_benchmark_writes_its_tables(tmp_path, monkeypatch) -> None:
+    from planner.experiments import fleet_bench
+
+    small = [fleet_bench.Family("crossing, 6 UAVs", lambda s: crossing_scenario(s), False)]
+    monkeypatch.setattr(fleet_bench, "FAMILIES", small)
+    config = fleet_bench.FleetConfig(budget=0.5, seeds_small=2)
+    text = fleet_bench.fleet_section(config, tmp_path / "fleet.csv")
+    assert "### crossing, 6 UAVs (seeds 0..1)" in text and "MVO qos (ours)" in text
+    assert "LaCAM (pymapf), 4-connected" in text and "prioritized (pymapf)" in text
+    rows = (tmp_path / "fleet.csv").read_text().splitlines()
+    assert len(rows) == 1 + 2 * 4  # header, then 2 seeds x 4 planners

@@ -7,18 +7,17 @@ Per planner and family: feasible share, time to the first safe plan, total time,
 against each UAV's own shortest path, and (ours) what the optimizer gained after the first
 safe plan; peak memory on the 50-UAV families; how far past its budget ours returned.
 
-Usage: PYTHONPATH=. .venv/bin/python bench/fleet_bench.py [--out bench/results/fleet.md]
-       [--budget 5] [--seeds-small 10] [--seeds-large 5]
+Run by `mvo-gcs bench planner` as the last section of its report (`fleet_section`).
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
+import dataclasses
+import functools
 import os
 import resource
 import statistics
-import sys
 import time
 import tracemalloc
 from collections.abc import Callable
@@ -28,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.experiments.machine import describe_machine
 from planner.experiments.scenario_generator import crossing_scenario, random_scenario
 from planner.pipeline import PlannerSettings, plan
 from planner.references import ReferenceResult, judge
+from planner.references.cbs import MapfDependencyError, require_pymapf
 from planner.references.pymapf_solvers import plan_lacam, plan_pymapf_prioritized
 from planner.scenario import Scenario
 from planner.trajectory import Trajectory
@@ -40,15 +39,28 @@ OURS = "MVO qos (ours)"
 
 
 @dataclass(frozen=True)
+class FleetConfig:
+    budget: float = 5.0
+    seeds_small: int = 10
+    seeds_large: int = 5
+
+
+@dataclass(frozen=True)
 class Family:
     name: str
     build: Callable[[int], Scenario]
-    large: bool  # 50 UAVs: fewer seeds, memory measured
+    large: bool  # fewer seeds; memory measured if it has 50 UAVs
+    most_seeds: int | None = None  # seeds that give a valid scenario, if fewer
+
+    def seeds(self, config: FleetConfig) -> int:
+        count = config.seeds_large if self.large else config.seeds_small
+        return count if self.most_seeds is None else min(count, self.most_seeds)
 
 
 FAMILIES = [
     Family("crossing, 6 UAVs, 20x20", lambda s: crossing_scenario(s), False),
     Family("crossing, 12 UAVs, 40x40", lambda s: crossing_scenario(s, size=40, uavs=12), False),
+    Family("crossing, 24 UAVs, 48x48", lambda s: crossing_scenario(s, size=48, uavs=24), True),
     Family(
         "random, 20 UAVs, 30x30", lambda s: random_scenario(s, size=30, uavs=20, objects=3), False
     ),
@@ -59,6 +71,7 @@ FAMILIES = [
         "crossing, 50 UAVs, 64x64",
         lambda s: crossing_scenario(s, size=64, uavs=50, objects=5),
         True,
+        3,  # seed 3 has no valid ring of 50 starts
     ),
 ]
 
@@ -123,8 +136,16 @@ def run_reference(
 
 
 def planners(budget: float) -> list[tuple[str, Callable[[Scenario, int], Row]]]:
+    """Ours, then the pymapf planners when the `mapf` extra is installed."""
+    ours: list[tuple[str, Callable[[Scenario, int], Row]]] = [
+        (OURS, lambda s, seed: run_ours(s, seed, budget))
+    ]
+    try:
+        require_pymapf()
+    except MapfDependencyError:
+        return ours
     return [
-        (OURS, lambda s, seed: run_ours(s, seed, budget)),
+        *ours,
         ("LaCAM 4", lambda s, seed: run_reference(s, seed, lambda x: plan_lacam(x, budget))),
         ("LaCAM 8", lambda s, seed: run_reference(s, seed, lambda x: plan_lacam(x, budget, True))),
         (
@@ -169,36 +190,6 @@ def family_table(rows: list[Row]) -> list[str]:
     return lines
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("bench/results/fleet.md"))
-    parser.add_argument("--budget", type=float, default=5.0)
-    parser.add_argument("--seeds-small", type=int, default=10)
-    parser.add_argument("--seeds-large", type=int, default=5)
-    args = parser.parse_args(argv)
-    load_before = os.getloadavg()
-    started = datetime.now(UTC)
-    rows: list[Row] = []
-    memory: list[tuple[str, str, float]] = []
-    for family in FAMILIES:
-        seeds = range(args.seeds_large if family.large else args.seeds_small)
-        for seed in seeds:
-            scenario = family.build(seed)
-            for name, run in planners(args.budget):
-                row = run(scenario, seed)
-                rows.append(Row(family.name, *list(vars(row).values())[1:]))
-                print(family.name, seed, name, row.feasible, f"{row.seconds:.2f}", flush=True)
-        if family.large:
-            scenario = family.build(0)
-            for _, run in planners(args.budget):
-                memory.append((family.name, *peak_mib(lambda s=scenario, r=run: r(s, 0))))
-    load_after = os.getloadavg()
-    write_csv(rows, args.out.with_suffix(".csv"))
-    args.out.write_text(report(args, rows, memory, started, load_before, load_after))
-    print(f"wrote {args.out}")
-    return 0
-
-
 def write_csv(rows: list[Row], path: Path) -> None:
     with path.open("w", newline="") as handle:
         writer = csv.writer(handle)
@@ -207,59 +198,79 @@ def write_csv(rows: list[Row], path: Path) -> None:
             writer.writerow(list(vars(r).values()))
 
 
-def report(args, rows, memory, started, load_before, load_after) -> str:
+def run_fleet(config: FleetConfig) -> tuple[list[Row], list[tuple[str, str, float]]]:
+    """Every family, seed and planner in turn, then the memory runs; printing as it goes."""
+    rows: list[Row] = []
+    memory: list[tuple[str, str, float]] = []
+    for family in FAMILIES:
+        for seed in range(family.seeds(config)):
+            scenario = family.build(seed)
+            for _, run in planners(config.budget):
+                row = run(scenario, seed)
+                rows.append(dataclasses.replace(row, family=family.name))
+                print(
+                    family.name, seed, row.planner, row.feasible, f"{row.seconds:.2f}", flush=True
+                )
+        if family.large and len(family.build(0).uavs) >= 50:
+            scenario = family.build(0)
+            for _, run in planners(config.budget):
+                memory.append((family.name, *peak_mib(functools.partial(run, scenario, 0))))
+    return rows, memory
+
+
+def fleet_section(config: FleetConfig, csv_path: Path) -> str:
+    """The fleet benchmark as a section of the planner report; per-run rows to `csv_path`."""
+    load_before, started = os.getloadavg(), datetime.now(UTC)
+    rows, memory = run_fleet(config)
+    load_after = os.getloadavg()
+    write_csv(rows, csv_path)
     ours = [r for r in rows if r.planner == OURS]
-    overrun = max(r.seconds - args.budget for r in ours)
-    seeds_small, seeds_large = args.seeds_small, args.seeds_large
+    overrun = max(r.seconds - config.budget for r in ours)
     lines = [
-        "# Fleet-scale planning beside pymapf's LaCAM and prioritized planning\n",
-        f"- Command: `PYTHONPATH=. .venv/bin/python bench/fleet_bench.py --budget {args.budget:g} "
-        f"--seeds-small {seeds_small} --seeds-large {seeds_large}`",
-        f"- Machine: {describe_machine()}; run {started:%Y-%m-%d %H:%M} UTC, one planner at a "
-        f"time in one process; load average {load_before[0]:.2f} before and "
-        f"{load_after[0]:.2f} after (other work shared the machine).",
+        "## Fleet scale, beside pymapf's LaCAM and prioritized planning\n",
+        f"- Run {started:%Y-%m-%d %H:%M} UTC, one planner at a time in one process; load "
+        f"average {load_before[0]:.2f} before and {load_after[0]:.2f} after (the 1-minute "
+        "figure; other work shared the 2 cores).",
         f"- Ours: MVO, `qos`, population 30, at most 1000 iterations a run, time budget "
-        f"{args.budget:g} s, seed = scenario seed. LaCAM (first solution) with a "
-        f"{args.budget:g} s limit; pymapf's prioritized planning (scenario order) stopped "
-        f"at {args.budget + 1:g} s.",
+        f"{config.budget:g} s, seed = scenario seed. LaCAM (its first solution) with a "
+        f"{config.budget:g} s limit; pymapf's prioritized planning (scenario order) stopped "
+        f"at {config.budget + 1:g} s.",
         "- Every plan is judged by our exact continuous-time check: feasible = no conflict, "
         "every UAV on its goal, never faster than its speed. pymapf steps are timed one "
         "cell time per straight step (4-connected) and √2 cell times per step "
         "(8-connected), so no UAV is too fast; pymapf does not see two UAVs crossing on "
         "a diagonal, our check does.",
         "- Time to first safe plan: ours, when the fleet first passed the exact check "
-        "inside the run; the references, their whole run if their plan is feasible.",
+        "during the run; the references, their whole run when their plan is feasible.",
         "- Length ratio: total length over the sum of each UAV's 8-connected shortest "
         "path with objects blocked (ours may be below 1: waypoints need not sit on cell "
-        "centres). Gain: share of the first safe plan's cost (length + hover price) the "
-        "optimizer removed within the budget.",
-        f"- Ours returned at most {overrun:+.3f} s past its {args.budget:g} s budget "
-        f"(over {len(ours)} runs). Per-run rows: `{args.out.with_suffix('.csv').name}`.\n",
+        "centres). Gain: the share of the first safe plan's cost (length + hover price) "
+        "the optimizer removed within the budget.",
+        f"- Ours returned at most {overrun:+.3f} s past its {config.budget:g} s budget "
+        f"(over {len(ours)} runs). Per-run rows: `{csv_path.name}`.\n",
     ]
     for family in FAMILIES:
         mine = [r for r in rows if r.family == family.name]
-        seeds = seeds_large if family.large else seeds_small
-        lines += [f"## {family.name} (seeds 0..{seeds - 1})\n", *family_table(mine), ""]
+        lines += [f"### {family.name} (seeds 0..{family.seeds(config) - 1})\n"]
+        lines += [*family_table(mine), ""]
     lines += [
-        "## Peak memory on the 50-UAV families (seed 0)\n",
+        "### Peak memory on the 50-UAV families (seed 0)\n",
         "Python and numpy allocations traced by tracemalloc during one more run "
         "(tracing slows pure-Python code, so these runs are not timed).\n",
         "| family | planner | peak MiB |",
         "|---|---|---:|",
         *(f"| {f} | {p} | {mib:.1f} |" for f, p, mib in memory),
         "",
-        f"Whole process peak RSS at the end: "
+        f"Peak RSS of the whole benchmark process: "
         f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB.",
         "",
     ]
+    if len(planners(config.budget)) == 1:
+        lines.append("pymapf did not run: install the `mapf` extra (`pip install -e '.[mapf]'`).\n")
     failures = [r for r in ours if not r.feasible]
     if failures:
-        lines.append("## Our runs without a feasible plan\n")
+        lines.append("Our runs without a feasible plan:\n")
         lines += [
             f"- {r.family}, seed {r.seed}: {r.note}; stopped by {r.stop_reason}" for r in failures
         ]
     return "\n".join(lines) + "\n"
-
-
-if __name__ == "__main__":
-    sys.exit(main())
