@@ -27,6 +27,7 @@ from planner.path_encoding import DetourEncoding, TurnEncoding
 from planner.trajectory import Trajectory, merge_collinear
 
 Array = NDArray[np.float64]
+PROBE_BLOCK = 32  # candidates of a wait probe scored per call
 
 
 @dataclass(frozen=True)
@@ -144,11 +145,16 @@ def wait_probe(encoding: DetourEncoding, search: Search, levels: int = 20) -> Pr
     rows = np.arange(hovers * levels) + 1
     genes[rows, 2 * len(encoding.base) + (rows - 1) // levels] = ((rows - 1) % levels + 1) / levels
     waypoints, waits = encoding.decode(genes)
-    terms = search.terms(waypoints, waits)
-    costs = search.objective.cost(terms)
+    # In blocks the size of a population: the terms of a block against dense traffic
+    # take (rows x encounters) floats each, which all rows at once would multiply.
+    costs, safe = np.empty(len(genes)), np.empty(len(genes), dtype=bool)
+    for lo in range(0, len(genes), PROBE_BLOCK):
+        block = slice(lo, lo + PROBE_BLOCK)
+        terms = search.terms(waypoints[block], waits[block])
+        costs[block], safe[block] = search.objective.cost(terms), terms.safe
     k = int(np.argmin(costs))
     points, hold = waypoints[k], waits[k]
     if not hold.any():
         points, hold = merge_collinear(points), np.zeros(len(merge_collinear(points)))
     trajectory = Trajectory.from_waypoints(points, search.speed, hold)
-    return Probe(trajectory, float(costs[k]), bool(terms.safe[k]), len(genes))
+    return Probe(trajectory, float(costs[k]), bool(safe[k]), len(genes))
