@@ -4,6 +4,11 @@ The optimizer (any of the six) minimises the chosen objective over the UAV's
 encoding, against the other UAVs' fixed trajectories and the blocked cells. The
 unchanged path is scored too, and a short polish afterwards straightens what the
 search left bent (a waypoint that can go without raising the cost goes).
+
+`wait_probe` is the quick alternative the anytime planner tries first: the UAV's
+shortest path with one hover, at each base point in turn and of every length on a
+grid, all scored in one vectorised call. When one of them is safe it gives a safe
+path at once; the improvement phase then lets the optimizer make it shorter.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from planner.path_encoding import DetourEncoding, TurnEncoding
 from planner.trajectory import Trajectory, merge_collinear
 
 Array = NDArray[np.float64]
+PROBE_BLOCK = 32  # candidates of a wait probe scored per call
 
 
 @dataclass(frozen=True)
@@ -120,3 +126,35 @@ def polish(waypoints: Array, waits: Array, search: Search) -> tuple[Array, Array
             break
         best, waypoints, waits = float(costs[k]), trial_points[k : k + 1], trial_waits[k : k + 1]
     return waypoints, waits
+
+
+@dataclass(frozen=True)
+class Probe:
+    trajectory: Trajectory
+    cost: float
+    safe: bool
+    evaluations: int
+
+
+def wait_probe(encoding: DetourEncoding, search: Search, levels: int = 20) -> Probe:
+    """The cheapest of: the base path unchanged, or with one hover of k/levels of the
+    longest at one of its points (k = 1..levels)."""
+    unchanged = encoding.unchanged()
+    hovers = encoding.dim - 2 * len(encoding.base)  # one wait gene per point but the goal
+    genes = np.repeat(unchanged[None], 1 + hovers * levels, axis=0)
+    rows = np.arange(hovers * levels) + 1
+    genes[rows, 2 * len(encoding.base) + (rows - 1) // levels] = ((rows - 1) % levels + 1) / levels
+    waypoints, waits = encoding.decode(genes)
+    # In blocks the size of a population: the terms of a block against dense traffic
+    # take (rows x encounters) floats each, which all rows at once would multiply.
+    costs, safe = np.empty(len(genes)), np.empty(len(genes), dtype=bool)
+    for lo in range(0, len(genes), PROBE_BLOCK):
+        block = slice(lo, lo + PROBE_BLOCK)
+        terms = search.terms(waypoints[block], waits[block])
+        costs[block], safe[block] = search.objective.cost(terms), terms.safe
+    k = int(np.argmin(costs))
+    points, hold = waypoints[k], waits[k]
+    if not hold.any():
+        points, hold = merge_collinear(points), np.zeros(len(merge_collinear(points)))
+    trajectory = Trajectory.from_waypoints(points, search.speed, hold)
+    return Probe(trajectory, float(costs[k]), bool(safe[k]), len(genes))

@@ -7,31 +7,50 @@
 3. The non-UAV objects are placed; only the UAVs whose path one of them touches
    replan (eq. 9), now with the objects blocked, and step 2 runs again if that
    created a new conflict.
-4. The plan is judged by the exact continuous-time check: it is feasible only
-   if that check finds nothing.
+4. With the `qos` objective, what time is left improves the plan: each UAV in turn,
+   most excess length first, searches again against the others; a new path is kept
+   only if it is cheaper and the exact check still passes.
+5. The plan is judged by the exact continuous-time check: it is feasible only
+   if that check finds nothing. The cheapest plan that passed it is returned.
+
+The planner is anytime: `time_budget_s` (default 5 s) bounds the wall time, every
+optimizer run also stops when it has converged (`patience`), and every moment the
+fleet passes the exact check is recorded (the first one's time is reported). With
+`time_budget_s=None` only the iteration budgets bound it and the same seed gives the
+same plan, bit for bit.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import time
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.black_hole import Search, search_path
+from planner.black_hole import Search, search_path, wait_probe
+from planner.budget import Budget, StopReason
 from planner.clearance import ClearanceField
+from planner.conflict_table import NEAR, ConflictTable
 from planner.grid_search import GridGraph, cell_map
-from planner.objectives import ObjectiveName, PaperObjective, QosObjective, paper_fitness
-from planner.optimizers import get_algorithm
+from planner.objectives import (
+    HOVER_PRICE,
+    ObjectiveName,
+    PaperObjective,
+    QosObjective,
+    paper_fitness,
+)
+from planner.optimizers import Progress, get_algorithm
 from planner.path_cost import Traffic
 from planner.path_encoding import DetourEncoding, TurnEncoding, grid_steps
 from planner.plan import Metrics, Plan, PlannedUAV
 from planner.references import shortest_lengths
-from planner.safety import cell_conflicts, check_plan
+from planner.run_stop import RunStop
+from planner.safety import SafetyReport, cell_conflicts, check_plan
 from planner.scenario import Scenario, UAVSpec
 from planner.trajectory import Trajectory, merge_collinear
 from planner.white_hole import Exploration, explore
@@ -39,6 +58,9 @@ from planner.white_hole import Exploration, explore
 Array = NDArray[np.float64]
 ATTEMPTS = 3  # searches a UAV in trouble gets before the others take over
 MAX_HOVER = 10.0  # seconds a UAV may hover at one waypoint to let others pass
+IMPROVEMENT = "improvement"  # the reason recorded for a replan of the improvement phase
+MIN_GAIN = 1e-3  # relative: an improvement smaller than this is not one
+FINISH_S = 0.05  # seconds kept back for building the plan, besides the final exact check
 
 
 @dataclass(frozen=True)
@@ -47,7 +69,15 @@ class PlannerSettings:
     objective: ObjectiveName = "qos"
     seed: int = 1
     population: int = 30
-    iterations: int = 1000
+    iterations: int = 1000  # per optimizer run, at most
+    time_budget_s: float | None = 5.0  # wall time for the whole plan; None: iterations only
+    patience: int | None = 100  # a run stops after this many iterations without gain
+    improve_rounds: int = 3  # qos only: rounds of the improvement phase, 0 for none
+
+    def iterations_only(self) -> PlannerSettings:
+        """These settings as the paper runs Algorithm 1: no time budget, every run all of
+        its iterations, no improvement phase (what the Table III reproduction uses)."""
+        return replace(self, time_budget_s=None, patience=None, improve_rounds=0)
 
 
 @dataclass(frozen=True)
@@ -59,7 +89,11 @@ class PlanProgress:
     reason: str
     iteration: int
     iterations: int
-    plan_cost: float
+    plan_cost: float  # the fleet's cost with this run's best path for `uav`
+    elapsed_s: float = 0.0
+    budget_percent: float | None = None  # share of the time budget used; None: no budget
+    best_cost: float | None = None  # cost of the cheapest plan that passed the exact check
+    first_safe_s: float | None = None  # when the first plan passed it
 
 
 ProgressCallback = Callable[[PlanProgress], None]
@@ -72,11 +106,29 @@ class _Map:
     blocked: NDArray[np.bool_]
     graph: GridGraph
     field: ClearanceField
+    routes: dict[tuple[tuple[int, int], tuple[int, int]], list[tuple[int, int]] | None] = (
+        dataclasses.field(default_factory=dict)  # `field` is taken by the clearance field
+    )
 
     @classmethod
     def of(cls, blocked: NDArray[np.bool_], avoid: NDArray[np.bool_] | None = None) -> _Map:
         searched = blocked if avoid is None else blocked | avoid
         return cls(blocked, GridGraph.build(searched), ClearanceField.build(searched))
+
+    def route(self, start: tuple[int, int], goal: tuple[int, int]) -> list[tuple[int, int]] | None:
+        """The searched grid's shortest path (computed once per pair of cells)."""
+        if (start, goal) not in self.routes:
+            self.routes[start, goal] = self.graph.shortest_path(start, goal)
+        return self.routes[start, goal]
+
+
+@dataclass
+class _Best:
+    """The cheapest fleet that has passed the exact check so far."""
+
+    paths: dict[str, Trajectory]
+    replans: dict[str, list[str]]
+    cost: float
 
 
 @dataclass
@@ -92,10 +144,19 @@ class _Planning:
     shortest: dict[str, float]
     start_distance: dict[str, float]
     objects: list[tuple[int, int]]
+    budget: Budget
+    table: ConflictTable
     replans: dict[str, list[str]] = field(default_factory=dict)
     history: list[float] = field(default_factory=list)
     nfe: int = 0
     runs: int = 0
+    iterations_run: int = 0
+    stopped_by_budget: bool = False
+    best: _Best | None = None
+    first_safe_s: float | None = None
+    first_safe_cost: float | None = None
+    converged_runs: int = 0
+    _lone: dict[str, tuple[Trajectory, _Map, float]] = field(default_factory=dict)
 
     @property
     def radii(self) -> dict[str, float]:
@@ -104,22 +165,80 @@ class _Planning:
     def explore(self, world: _Map) -> Exploration:
         return explore(self.paths, self.radii, self.shortest, self.objects, world.blocked.shape)
 
+    def penalty(self, world: _Map) -> float:
+        return 100.0 * (world.blocked.shape[0] + world.blocked.shape[1] + 10)
+
+    @property
+    def scale(self) -> float:
+        """The plan cost is a sum over UAVs (qos) or the mean J (paper)."""
+        return 1.0 if self.settings.objective == "qos" else 1.0 / len(self.paths)
+
     def objective(self, uav: str, penalty: float) -> QosObjective | PaperObjective:
         if self.settings.objective == "qos":
             return QosObjective(self.specs[uav].speed, penalty)
         count = len(self.specs) + len(self.objects)
         return PaperObjective(count, self.start_distance[uav], penalty)
 
+    def base_cost(self, uav: str) -> float:
+        """The objective of `uav`'s current path without any penalty, from its trajectory."""
+        trajectory, spec = self.paths[uav], self.specs[uav]
+        if self.settings.objective == "qos":
+            hover = trajectory.end_time - trajectory.length / spec.speed
+            return trajectory.length + HOVER_PRICE * spec.speed * max(hover, 0.0)
+        deviation = float(np.hypot(*(trajectory.end - np.array(spec.goal))))
+        count = len(self.specs) + len(self.objects)
+        return float(paper_fitness(count, trajectory.length, deviation, self.start_distance[uav]))
+
+    def others_cost(self, uav: str, world: _Map) -> float:
+        """The sum of every other UAV's search cost with `uav` left out of its traffic
+        (the fleet cost of the progress reports and the history).
+
+        Only a UAV that comes near another needs its traffic sampled: for the rest the
+        sampled separation terms are zero, and the cost without traffic is the same
+        number. With a time budget that sampling is skipped (it can take a quarter of
+        the time on fifty UAVs): a conflict between two other UAVs then counts the
+        penalty once, without its depth.
+        """
+        if self.settings.time_budget_s is not None:
+            clash = self.penalty(world) * self.table.conflicts_without(uav)
+            return clash + sum(self.lone_cost(u, world) for u in self.paths if u != uav)
+        total = 0.0
+        for u in self.paths:
+            if u == uav:
+                continue
+            if self.table.comes_near(u, NEAR, leave_out=uav):
+                total += self.current_cost(u, world, ignore=uav)
+            else:
+                total += self.lone_cost(u, world)
+        return total
+
+    def lone_cost(self, uav: str, world: _Map) -> float:
+        """`uav`'s search cost with no other UAV about, cached per path and map."""
+        trajectory = self.paths[uav]
+        cached = self._lone.get(uav)
+        if cached is None or cached[0] is not trajectory or cached[1] is not world:
+            waypoints, waits = _as_waypoints(trajectory)
+            region = (waypoints.min(axis=0), waypoints.max(axis=0))
+            search = self.search(uav, world, region, alone=True)
+            cached = (trajectory, world, float(search.cost(waypoints[None], waits[None])[0]))
+            self._lone[uav] = cached
+        return cached[2]
+
     def search(
-        self, uav: str, world: _Map, region: tuple[Array, Array], ignore: str | None = None
+        self,
+        uav: str,
+        world: _Map,
+        region: tuple[Array, Array],
+        ignore: str | None = None,
+        alone: bool = False,
     ) -> Search:
         """Costs for `uav`'s paths inside `region` against everything else (but `ignore`),
-        held fixed."""
+        held fixed; against the map only if `alone`."""
         spec = self.specs[uav]
         others = [
             (self.paths[u], self.specs[u].radius, self.specs[u].speed)
             for u in self.paths
-            if u not in (uav, ignore)
+            if u not in (uav, ignore) and not alone
         ]
         traffic = Traffic.around(
             others,
@@ -129,14 +248,13 @@ class _Planning:
             lower=region[0],
             upper=region[1],
         )
-        penalty = 100.0 * (world.blocked.shape[0] + world.blocked.shape[1] + 10)
         return Search(
             spec.speed,
             spec.radius,
             np.array(spec.goal, dtype=float),
             traffic,
             world.field,
-            self.objective(uav, penalty),
+            self.objective(uav, self.penalty(world)),
         )
 
     def current_cost(self, uav: str, world: _Map, ignore: str | None = None) -> float:
@@ -145,34 +263,54 @@ class _Planning:
         search = self.search(uav, world, region, ignore)
         return float(search.cost(waypoints[None], waits[None])[0])
 
-    def replan(self, uav: str, world: _Map, reason: str) -> bool:
-        """One optimizer run for `uav`; keeps the new path if it costs less. True if kept."""
+    def encoding(self, uav: str, world: _Map) -> DetourEncoding | TurnEncoding | None:
         spec = self.specs[uav]
         if self.settings.objective == "qos":
-            cells = world.graph.shortest_path(spec.start, spec.goal)
+            cells = world.route(spec.start, spec.goal)
             if cells is None:
-                return False
+                return None
             horizon = max((t.end_time for u, t in self.paths.items() if u != uav), default=1.0)
-            encoding: DetourEncoding | TurnEncoding = DetourEncoding.around(
+            return DetourEncoding.around(
                 np.array(cells, dtype=float), max_wait=min(horizon + 1.0, MAX_HOVER)
             )
-        else:
-            offset = self.paths[uav].end - np.array(spec.goal, dtype=float)
-            same_way = np.sign(offset) if np.any(offset) else None
-            encoding = TurnEncoding(grid_steps(merge_collinear(self.paths[uav].xy)), same_way)
+        offset = self.paths[uav].end - np.array(spec.goal, dtype=float)
+        same_way = np.sign(offset) if np.any(offset) else None
+        return TurnEncoding(grid_steps(merge_collinear(self.paths[uav].xy)), same_way)
+
+    def replan(self, uav: str, world: _Map, reason: str, share: float = float("inf")) -> bool:
+        """One optimizer run for `uav`, of at most `share` seconds; keeps the new path if it
+        costs less and the exact check finds no new conflict. True if kept."""
+        spec = self.specs[uav]
+        encoding = self.encoding(uav, world)
+        if encoding is None:
+            return False
         search = self.search(uav, world, encoding.region())
         before = self.current_cost(uav, world)
+        if self.probing(reason) and isinstance(encoding, DetourEncoding):
+            probe = wait_probe(encoding, search)
+            self.nfe += probe.evaluations
+            if probe.safe and probe.cost < before and self.keep(uav, probe.trajectory, reason):
+                return True
         # The others' costs leave out their conflicts with `uav`: its own cost counts them.
-        others = sum(self.current_cost(u, world, ignore=uav) for u in self.paths if u != uav)
-        scale = 1.0 if self.settings.objective == "qos" else 1.0 / len(self.paths)
+        others = self.others_cost(uav, world)
         self.runs += 1
         run = self.runs
+        # Making a UAV safe needs no polish: once its best is safe the run may end soon.
+        resolving = reason != IMPROVEMENT and self.settings.objective == "qos"
+        stop = RunStop(
+            self.budget,
+            self.settings.patience,
+            safe_below=self.penalty(world) if resolving else None,
+        )
+        ends = self.budget.elapsed() + share
 
-        def on_iteration(p) -> None:
-            cost = scale * (others + min(p.best_cost, before))
+        def on_iteration(p: Progress) -> bool:
+            cost = self.scale * (others + min(p.best_cost, before))
             self.history.append(cost)
+            self.iterations_run += 1
             if self.progress is not None:
-                self.progress(PlanProgress(run, uav, reason, p.iteration, p.iterations, cost))
+                self.progress(self._report(run, uav, reason, p, cost))
+            return stop(p.best_cost) or self.budget.elapsed() >= ends
 
         outcome = search_path(
             encoding,
@@ -184,37 +322,99 @@ class _Planning:
             on_iteration=on_iteration,
         )
         self.nfe += outcome.result.nfe
-        if outcome.cost >= before or cell_conflicts(
+        if stop.reason == "budget" or self.budget.expired():
+            self.stopped_by_budget = True
+        self.converged_runs += stop.reason == "converged"
+        gain = MIN_GAIN * max(abs(before), 1.0) if reason == IMPROVEMENT else 0.0
+        if outcome.cost >= before - gain or cell_conflicts(
             uav, outcome.trajectory, spec.radius, world.blocked
         ):  # the search reads clearance from a raster; the exact check has the last word
             return False
-        self.paths[uav] = outcome.trajectory
+        return self.keep(uav, outcome.trajectory, reason)
+
+    def probing(self, reason: str) -> bool:
+        """The anytime mode (qos with an improvement phase) tries a hover before a search
+        when a UAV must be made safe: the improvement phase shortens it later."""
+        anytime = self.settings.objective == "qos" and self.settings.improve_rounds > 0
+        return anytime and reason != IMPROVEMENT
+
+    def keep(self, uav: str, trajectory: Trajectory, reason: str) -> bool:
+        """`uav` flies `trajectory` from now on, unless (improving or probing) the exact
+        check finds more conflicts for it than before, or it enters a blocked cell."""
+        spec = self.specs[uav]
+        if cell_conflicts(uav, trajectory, spec.radius, self.table.blocked):
+            return False
+        old = self.paths[uav]
+        conflicts = len(self.table.collision_paths(uav))
+        self.paths[uav] = trajectory
+        self.table.update(uav, trajectory)
+        strict = reason == IMPROVEMENT or self.probing(reason)
+        if strict and len(self.table.collision_paths(uav)) > conflicts:
+            self.paths[uav] = old  # cheaper by the sampled cost, but not by the exact check
+            self.table.update(uav, old)
+            return False
         self.replans.setdefault(uav, []).append(reason)
+        self.record_if_safe()
         return True
 
-    def troubled(self, world: _Map) -> list[str]:
-        """UAVs in conflict with another UAV or inside a blocked cell, highest priority first."""
-        exploration = self.explore(world)
-        hit = {
-            u
-            for u in self.specs
-            if cell_conflicts(u, self.paths[u], self.specs[u].radius, world.blocked)
-        }
-        trouble = [u for u in self.specs if exploration.collision_paths[u] or u in hit]
-        # Ties keep the scenario's order: the paper's UAV1 turns when priorities are equal.
-        return sorted(trouble, key=lambda u: -exploration.priority[u])
+    def _report(self, run: int, uav: str, reason: str, p: Progress, cost: float) -> PlanProgress:
+        return PlanProgress(
+            run,
+            uav,
+            reason,
+            p.iteration,
+            p.iterations,
+            cost,
+            elapsed_s=self.budget.elapsed(),
+            budget_percent=self.budget.percent(),
+            best_cost=None if self.best is None else self.best.cost,
+            first_safe_s=self.first_safe_s,
+        )
+
+    def check(self) -> SafetyReport:
+        obstacles = self.scenario.blocked()
+        return check_plan(self.paths, self.radii, obstacles, self.objects)
+
+    def record_if_safe(self) -> None:
+        """If the fleet as it stands passes the exact check, remember it (the first time,
+        and whenever it is the cheapest yet)."""
+        if self.table.pairs:
+            return  # the check would find these; no need to run it
+        started = time.perf_counter()
+        safe = self.check().safe
+        self.budget.keep_back(2.0 * (time.perf_counter() - started))  # for the final check
+        if not safe:
+            return
+        cost = self.scale * sum(self.base_cost(u) for u in self.paths)
+        if self.first_safe_s is None:
+            self.first_safe_s, self.first_safe_cost = self.budget.elapsed(), cost
+        if self.best is None or cost < self.best.cost:
+            replans = {u: list(r) for u, r in self.replans.items()}
+            self.best = _Best(dict(self.paths), replans, cost)
+
+    def use_world(self, world: _Map) -> None:
+        """Judge cell hits against `world`'s blocked cells from now on."""
+        if self.table.blocked is not world.blocked:
+            self.table.on_map(world.blocked)
 
     def resolve_conflicts(self, world: _Map, reason: str = "uav conflict") -> None:
         """Step 2: the highest-priority UAV in trouble replans until none is left, or until
         every UAV in trouble has failed ATTEMPTS times since the last success (the search
-        is random, so a second try from where the first left off often succeeds)."""
+        is random, so a second try from where the first left off often succeeds). With a
+        time budget each run gets a fair share of what is left."""
+        self.use_world(world)
         failures: Counter[str] = Counter()
         for _ in range(6 * len(self.specs)):
-            candidates = [u for u in self.troubled(world) if failures[u] < ATTEMPTS]
+            if self.budget.expired():
+                self.stopped_by_budget = True
+                return
+            troubled = self.table.troubled()
+            candidates = [u for u in troubled if failures[u] < ATTEMPTS]
             if not candidates:
                 return
             uav = candidates[0]
-            if self.replan(uav, world, reason) and uav not in self.troubled(world):
+            share = self.budget.remaining() / (len(troubled) + 1)
+            if self.replan(uav, world, reason, share) and uav not in self.table.troubled():
                 failures.clear()
             else:
                 failures[uav] += 1
@@ -232,11 +432,47 @@ class _Planning:
         if not touched:
             return world
         world = _Map.of(world.blocked | object_map)
-        priority = self.explore(world).priority
-        for uav in sorted(touched, key=lambda u: -priority[u]):
-            self.replan(uav, world, "non-UAV object")
+        self.use_world(world)
+        for uav in sorted(touched, key=lambda u: -self.table.priority(u)):
+            if self.budget.expired():
+                self.stopped_by_budget = True
+                break
+            share = self.budget.remaining() / (len(touched) + 1)
+            self.replan(uav, world, "non-UAV object", share)
         self.resolve_conflicts(world)
         return world
+
+    def improve(self, world: _Map) -> StopReason:
+        """Step 4 (qos): with the fleet safe, each UAV in turn, most excess cost first,
+        searches again against the others; rounds end when none improves."""
+        wanted = self.settings.objective == "qos" and self.settings.improve_rounds > 0
+        if self.best is None or not wanted:
+            return self.algorithm_1_reason()
+        if self.best.paths != self.paths:
+            self.paths = dict(self.best.paths)
+            self.table = ConflictTable.build(self.paths, self.radii, world.blocked)
+        self.replans = {u: list(r) for u, r in self.best.replans.items()}
+        self.use_world(world)
+        for _ in range(self.settings.improve_rounds):
+            excess = {u: self.base_cost(u) - self.shortest[u] for u in self.paths}
+            improved = False
+            for uav in sorted(self.paths, key=lambda u: -excess[u]):
+                if self.budget.expired():
+                    self.stopped_by_budget = True
+                    return "budget"
+                improved |= self.replan(uav, world, IMPROVEMENT)
+            if self.stopped_by_budget:
+                return "budget"
+            if not improved:
+                return "converged"
+        return "iterations"
+
+    def algorithm_1_reason(self) -> StopReason:
+        """Without an improvement phase: the budget if it cut a run short, converged if
+        every run converged (or none was needed), else the iteration budget."""
+        if self.stopped_by_budget:
+            return "budget"
+        return "converged" if self.converged_runs == self.runs else "iterations"
 
 
 def plan(
@@ -246,20 +482,27 @@ def plan(
 ) -> Plan:
     """Collision-free paths for every UAV of the scenario, or an infeasible plan that says why."""
     get_algorithm(settings.algorithm)  # fail fast on an unknown name
-    started = time.perf_counter()
+    budget = Budget(settings.time_budget_s)
     obstacles = _Map.of(scenario.blocked())
     specs = {u.id: u for u in scenario.uavs}
     objects = scenario.object_cells()
     paths = {}
     for u in scenario.uavs:
-        cells = obstacles.graph.shortest_path(u.start, u.goal)
+        cells = obstacles.route(u.start, u.goal)
         assert cells is not None, "the scenario's validation guarantees a path"
         paths[u.id] = Trajectory.from_waypoints(merge_collinear(cells), u.speed)
     shortest = shortest_lengths(scenario)
     rng = np.random.default_rng(settings.seed)
-    state = _Planning(scenario, settings, progress, rng, specs, paths, shortest, {}, objects)
-    first = state.explore(obstacles)
+    radii = {u.id: u.radius for u in scenario.uavs}
+    table = ConflictTable.build(paths, radii, obstacles.blocked)
+    state = _Planning(
+        scenario, settings, progress, rng, specs, paths, shortest, {}, objects, budget, table
+    )
+    checked = time.perf_counter()
+    first = state.explore(obstacles)  # every pair, as the final check does: time it
+    budget.keep_back(2.0 * (time.perf_counter() - checked) + FINISH_S)
     state.start_distance = _adjoining_start_distance(scenario, first.priority)
+    state.record_if_safe()
 
     # The paper plans around the UAVs first and meets the objects only in the wormhole
     # step. With `qos` the searches already keep clear of the objects the scenario
@@ -268,8 +511,15 @@ def plan(
     known = cell_map(objects, obstacles.blocked.shape)
     first_world = _Map.of(obstacles.blocked, known) if settings.objective == "qos" else obstacles
     state.resolve_conflicts(first_world)
-    state.wormhole(obstacles)
-    return _finish(state, obstacles, first, time.perf_counter() - started)
+    world = state.wormhole(obstacles)
+    if state.objects and world is obstacles:  # no UAV touched an object: block them anyway
+        world = _Map.of(obstacles.blocked | known)
+    state.record_if_safe()
+    reason = state.improve(world)
+    if state.best is not None:
+        state.paths = state.best.paths
+        state.replans = state.best.replans
+    return _finish(state, obstacles, first, reason)
 
 
 def _adjoining_start_distance(scenario: Scenario, priority: dict[str, float]) -> dict[str, float]:
@@ -297,7 +547,7 @@ def _as_waypoints(trajectory: Trajectory) -> tuple[Array, Array]:
     return np.array(waypoints), np.array(waits)
 
 
-def _finish(state: _Planning, world: _Map, first: Exploration, seconds: float) -> Plan:
+def _finish(state: _Planning, world: _Map, first: Exploration, reason: StopReason) -> Plan:
     report = check_plan(state.paths, state.radii, world.blocked, state.objects)
     count = len(state.specs) + len(state.objects)
     uavs, fitness = [], []
@@ -321,6 +571,10 @@ def _finish(state: _Planning, world: _Map, first: Exploration, seconds: float) -
             )
         )
     closest = report.min_separation
+    final_cost = state.scale * sum(state.base_cost(u) for u in state.paths)
+    improvement = None
+    if report.safe and state.first_safe_cost:
+        improvement = (state.first_safe_cost - final_cost) / state.first_safe_cost
     metrics = Metrics(
         conflicts=len(report.conflicts),
         min_separation=None if not np.isfinite(closest) else round(closest, 6),
@@ -328,11 +582,18 @@ def _finish(state: _Planning, world: _Map, first: Exploration, seconds: float) -
         total_length=round(sum(u.length for u in uavs), 6),
         J=round(float(np.mean(fitness)), 6),
         nfe=state.nfe,
-        seconds=round(seconds, 4),
+        seconds=round(state.budget.elapsed(), 4),
         replans=state.runs,
+        iterations_run=state.iterations_run,
+        first_safe_s=_rounded(state.first_safe_s, 4),
+        first_safe_cost=_rounded(state.first_safe_cost, 6),
+        cost=round(final_cost, 6),
+        improvement=_rounded(improvement, 6),
     )
     settings = state.settings
     return Plan(
+        stop_reason=reason,
+        time_budget_s=settings.time_budget_s,
         feasible=report.safe,
         algorithm=get_algorithm(settings.algorithm).name,
         objective=settings.objective,
@@ -346,3 +607,7 @@ def _finish(state: _Planning, world: _Map, first: Exploration, seconds: float) -
         conflicts=[c.to_json() for c in report.conflicts],
         history=[round(h, 6) for h in state.history],
     )
+
+
+def _rounded(value: float | None, digits: int) -> float | None:
+    return None if value is None else round(value, digits)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -32,10 +32,31 @@ class Metrics(_Out):
     nfe: int
     seconds: float
     replans: int
+    iterations_run: int | None = Field(
+        default=None, description="optimizer iterations run, all runs together"
+    )
+    first_safe_s: float | None = Field(
+        default=None, description="seconds until the first plan that passed the exact check"
+    )
+    first_safe_cost: float | None = Field(default=None, description="that plan's cost")
+    cost: float | None = Field(
+        default=None,
+        description="the plan's cost: sum of length + hover price (qos), or mean J (paper)",
+    )
+    improvement: float | None = Field(
+        default=None,
+        description="share of the first safe plan's cost the optimizer took off afterwards",
+    )
 
 
 class Plan(_Out):
     feasible: bool
+    stop_reason: Literal["converged", "budget", "iterations"] | None = Field(
+        default=None,
+        description="converged: nothing left to improve; budget: the time budget ended it; "
+        "iterations: the iteration budget did",
+    )
+    time_budget_s: float | None = Field(default=None, description="null: iterations only")
     algorithm: str
     objective: str
     seed: int

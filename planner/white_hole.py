@@ -36,6 +36,14 @@ class Exploration:
     min_separation: float
 
 
+def importance(collision_paths: list[Conflict], flight_time: float) -> float:
+    """ImP, eq. (7): #PC_i / (t_c x T_i); 0 for a UAV without collision paths."""
+    if not collision_paths:
+        return 0.0
+    first = max(min(c.time for c in collision_paths), EARLIEST)
+    return len(collision_paths) / (first * max(flight_time, EARLIEST))
+
+
 def explore(
     trajectories: Mapping[str, Trajectory],
     radii: Mapping[str, float],
@@ -51,11 +59,7 @@ def explore(
     priority, threat = {}, {}
     for uav, trajectory in trajectories.items():
         pc = collision_paths[uav]
-        if pc:
-            first = max(min(c.time for c in pc), EARLIEST)
-            priority[uav] = len(pc) / (first * max(trajectory.end_time, EARLIEST))
-        else:
-            priority[uav] = 0.0
+        priority[uav] = importance(pc, trajectory.end_time)
         on_path = len(cell_conflicts(uav, trajectory, radii[uav], object_map, "non_uav_object"))
         wep = on_path / objects_total if objects_total else 0.0
         threat[uav] = len(pc) / others * wep

@@ -32,6 +32,13 @@ def add_planning_arguments(parser: argparse.ArgumentParser, iterations: int = 10
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--population", type=positive_int, default=30)
     parser.add_argument("--iterations", type=positive_int, default=iterations)
+    parser.add_argument(
+        "--time-budget",
+        type=float,
+        default=5.0,
+        metavar="SECONDS",
+        help="wall time for the plan (default 5); 0: none, iterations only (deterministic)",
+    )
 
 
 def planner_settings(args: argparse.Namespace) -> PlannerSettings:
@@ -41,6 +48,7 @@ def planner_settings(args: argparse.Namespace) -> PlannerSettings:
         seed=args.seed,
         population=args.population,
         iterations=args.iterations,
+        time_budget_s=args.time_budget if args.time_budget > 0 else None,
     )
 
 

@@ -28,13 +28,15 @@ class CaseSpec:
         return zlib.crc32(f"{key}/{self.seed}".encode())
 
     def settings(self) -> PlannerSettings:
+        """Algorithm 1 as the paper runs it: every run all its iterations, no time budget
+        (so any executor, on any machine, gives the same record)."""
         return PlannerSettings(
             algorithm=self.algorithm,
             objective=self.objective,
             seed=self.planner_seed(),
             population=self.population,
             iterations=self.iterations,
-        )
+        ).iterations_only()
 
 
 @dataclass(frozen=True)

@@ -63,3 +63,47 @@ def _draw(
 def _on_ring(centre: float, radius: float, angle: float, size: int) -> tuple[int, int]:
     x, y = np.clip(np.rint(centre + radius * np.array([np.cos(angle), np.sin(angle)])), 0, size - 1)
     return int(x), int(y)
+
+
+def random_scenario(
+    seed: int,
+    *,
+    size: int = 50,
+    uavs: int = 50,
+    obstacle_share: float = 0.10,
+    objects: int = 5,
+) -> Scenario:
+    """Starts and goals drawn on free cells (warehouse-style traffic, no common centre),
+    random obstacles and non-UAV objects; retries with the same generator until valid."""
+    rng = np.random.default_rng(seed)
+    for _ in range(MAX_TRIES):
+        data = _draw_random(rng, size, uavs, obstacle_share, objects)
+        try:
+            return load_scenario({"name": f"random-{seed}", **data})
+        except ValidationError:
+            continue
+    raise RuntimeError(f"no valid random scenario for seed {seed} in {MAX_TRIES} tries")
+
+
+def _draw_random(
+    rng: np.random.Generator, size: int, uavs: int, obstacle_share: float, objects: int
+) -> dict:
+    cells = [(x, y) for x in range(size) for y in range(size)]
+    picks = rng.permutation(len(cells))
+    n_obstacles = round(obstacle_share * size * size)
+    ends = [cells[i] for i in picks[: 2 * uavs]]
+    obstacles = [cells[i] for i in picks[2 * uavs : 2 * uavs + n_obstacles]]
+    placed = [cells[i] for i in picks[2 * uavs + n_obstacles : 2 * uavs + n_obstacles + objects]]
+    return {
+        "grid": {"width": size, "height": size, "cell_size_m": 10.0},
+        "uavs": [
+            {
+                "id": f"uav{k + 1}",
+                "start": list(map(int, ends[2 * k])),
+                "goal": list(map(int, ends[2 * k + 1])),
+            }
+            for k in range(uavs)
+        ],
+        "obstacles": [list(map(int, c)) for c in obstacles],
+        "non_uav_objects": [list(map(int, c)) for c in placed],
+    }
