@@ -13,7 +13,7 @@ TAKEOFF = mavlink.MAV_LANDED_STATE_TAKEOFF
 LANDING = mavlink.MAV_LANDED_STATE_LANDING
 
 LAND_SLOW_BELOW_M = 10.0
-"""ArduCopter descends at its descent rate to 10 m, then at LAND_SPEED."""
+"""ArduCopter descends at its descent rate to 10 m, then at LAND_SPD_MS."""
 TAKEOFF_DONE_MARGIN_M = 0.5
 
 

@@ -38,26 +38,27 @@ class Param:
 
 
 ARDUCOPTER_DEFAULTS: tuple[tuple[str, float, int], ...] = (
-    ("SYSID_THISMAV", 1, INT16),
-    ("SYSID_MYGCS", 255, INT16),
+    ("MAV_SYSID", 1, INT16),
+    ("MAV_GCS_SYSID", 255, INT16),
     ("FRAME_CLASS", 1, INT8),
-    ("FRAME_TYPE", 1, INT8),
-    ("ARMING_CHECK", 1, INT32),
+    ("FRAME_TYPE", 0, INT8),
+    ("ARMING_SKIPCHK", 0, INT32),
     ("DISARM_DELAY", 10, INT8),
-    ("WPNAV_SPEED", 1000, REAL32),
-    ("WPNAV_RADIUS", 200, REAL32),
-    ("WPNAV_ACCEL", 250, REAL32),
-    ("WPNAV_SPEED_UP", 250, REAL32),
-    ("WPNAV_SPEED_DN", 150, REAL32),
-    ("WPNAV_ACCEL_Z", 100, REAL32),
-    ("LAND_SPEED", 50, INT16),
-    ("RTL_ALT", 1500, INT32),
+    ("WP_SPD", 10.0, REAL32),
+    ("WP_RADIUS_M", 2.0, REAL32),
+    ("WP_ACC", 2.5, REAL32),
+    ("WP_SPD_UP", 2.5, REAL32),
+    ("WP_SPD_DN", 1.5, REAL32),
+    ("WP_ACC_Z", 1.0, REAL32),
+    ("LAND_SPD_MS", 0.5, REAL32),
+    ("RTL_ALT_M", 15.0, REAL32),
     ("FENCE_ENABLE", 0, INT8),
     ("FS_GCS_ENABLE", 0, INT8),
     ("WP_YAW_BEHAVIOR", 2, INT8),
     ("BATT_CAPACITY", 3300, INT32),
 )
-"""ArduCopter 4.x names, units (cm, cm/s) and defaults."""
+"""ArduCopter 4.8 names, units (m, m/s) and defaults, as its SITL lists them (4.6 and
+older call these WPNAV_SPEED, WPNAV_RADIUS, ... in cm and cm/s)."""
 
 PX4_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("MAV_SYS_ID", 1, INT32),
@@ -81,15 +82,14 @@ PX4_DEFAULTS: tuple[tuple[str, float, int], ...] = (
 
 
 def arducopter_limits(params: ParameterSet) -> NavLimits:
-    cm = 0.01
     return NavLimits(
-        cruise_speed=params.get("WPNAV_SPEED") * cm,
-        accel=params.get("WPNAV_ACCEL") * cm,
-        climb_rate=params.get("WPNAV_SPEED_UP") * cm,
-        descent_rate=params.get("WPNAV_SPEED_DN") * cm,
-        vertical_accel=params.get("WPNAV_ACCEL_Z") * cm,
-        land_speed=params.get("LAND_SPEED") * cm,
-        accept_radius=params.get("WPNAV_RADIUS") * cm,
+        cruise_speed=params.get("WP_SPD"),
+        accel=params.get("WP_ACC"),
+        climb_rate=params.get("WP_SPD_UP"),
+        descent_rate=params.get("WP_SPD_DN"),
+        vertical_accel=params.get("WP_ACC_Z"),
+        land_speed=params.get("LAND_SPD_MS"),
+        accept_radius=params.get("WP_RADIUS_M"),
     )
 
 

@@ -98,7 +98,7 @@ class TcpEndpoint:
             pass
         finally:
             self._writers.pop(key, None)
-            self._tasks.discard(asyncio.current_task())  # type: ignore[arg-type]
+            self._tasks.discard(asyncio.current_task())  # type: ignore[arg-type,unused-ignore]
             writer.close()
 
     def send(self, data: bytes) -> None:

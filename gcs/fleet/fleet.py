@@ -27,7 +27,7 @@ from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Mission
 from gcs.mavlink.mission_protocol import MissionClient, UploadResult
-from gcs.mavlink.parameters import set_parameters
+from gcs.mavlink.parameters import set_in_units
 from gcs.mission.build import Visit, fly_ideally, takeoff_index
 
 __all__ = ["Fallback", "Fleet", "FleetSettings", "FlightReport", "VehicleOutcome"]
@@ -167,8 +167,9 @@ class Fleet:
 
 async def _upload(member: Member) -> UploadResult:
     result = await member.client.upload(member.mission)
-    if member.link.autopilot == Autopilot.ARDUPILOT:
-        await set_parameters(member.link, ardupilot.mission_parameters(member.mission))
+    radius = ardupilot.acceptance_radius_m(member.mission)
+    if member.link.autopilot == Autopilot.ARDUPILOT and radius is not None:
+        await set_in_units(member.link, ardupilot.RADIUS_PARAMETERS, radius)
     return result
 
 

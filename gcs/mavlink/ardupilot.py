@@ -84,17 +84,21 @@ def same_stored(sent: MissionItem, read: MissionItem) -> bool:
     )
 
 
-def mission_parameters(mission: Mission) -> dict[str, float]:
-    """Parameters that make ArduCopter fly `mission` as built: the waypoints' acceptance
-    radius (their param2, which ArduCopter drops) goes to WPNAV_RADIUS, in centimetres."""
+RADIUS_PARAMETERS = (("WP_RADIUS_M", 1.0), ("WPNAV_RADIUS", 100.0))
+"""Where ArduCopter keeps the waypoint radius, newest first, with its unit per metre:
+4.8 (as its SITL lists it) has WP_RADIUS_M in metres, 4.6 and older WPNAV_RADIUS in cm."""
+MIN_RADIUS_M = 0.05  # Copter's WP_RADIUS_M_MIN
+
+
+def acceptance_radius_m(mission: Mission) -> float | None:
+    """The waypoints' acceptance radius (their param2, which ArduCopter does not store
+    but takes from a parameter), if the mission asks for one."""
     radii = {
         item.params[1]
         for item in mission.items
         if item.command == mavlink2.MAV_CMD_NAV_WAYPOINT and item.params[1] > 0
     }
-    if not radii:
-        return {}
-    return {"WPNAV_RADIUS": max(5.0, min(radii) * 100.0)}  # Copter's range starts at 5 cm
+    return max(MIN_RADIUS_M, min(radii)) if radii else None
 
 
 def _stored_param(command: int, index: int, value: float) -> float:

@@ -6,8 +6,8 @@ if the vehicle refused); it is re-sent while no answer comes, within a bound.
 
 from __future__ import annotations
 
-import asyncio
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -47,8 +47,39 @@ async def set_parameter(link: VehicleLink, name: str, value: float) -> float:
     )
 
 
-async def set_parameters(link: VehicleLink, values: dict[str, float]) -> None:
-    await asyncio.gather(*(set_parameter(link, name, v) for name, v in values.items()))
+async def find_parameter(link: VehicleLink, names: Sequence[str]) -> tuple[str, float] | None:
+    """The first of `names` the vehicle has, with its value (firmware versions rename
+    parameters); all asked for at once with PARAM_REQUEST_READ, None if none answers."""
+    wanted = set(names)
+    link.ensure_up()
+    with link.subscribe(["PARAM_VALUE"]) as sub:
+        for _ in range(ATTEMPTS):
+            for name in names:
+                link.send(
+                    link.codec.param_request_read_encode(link.sysid, link.compid, name.encode(), -1)
+                )
+            try:
+                answer = await sub.next_matching(lambda m: _named(m) in wanted, ANSWER_TIMEOUT_S)
+            except WaitTimeoutError:
+                continue
+            return _named(answer), float(answer.param_value)
+    return None
+
+
+async def set_in_units(
+    link: VehicleLink, candidates: Sequence[tuple[str, float]], value: float
+) -> str:
+    """Set whichever of `candidates` (name, units per given unit) the vehicle has to
+    `value`; the name it was set under."""
+    scale = dict(candidates)
+    found = await find_parameter(link, [name for name, _ in candidates])
+    if found is None:
+        raise ParameterError(
+            f"vehicle {link.sysid} has none of {', '.join(scale)}: cannot set it to {value}"
+        )
+    name = found[0]
+    await set_parameter(link, name, value * scale[name])
+    return name
 
 
 def _named(msg: Any) -> str:

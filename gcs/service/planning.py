@@ -75,7 +75,13 @@ class PlanningService:
     def on_progress(self, p: JobProgress) -> None:
         task = self._tasks.get(p.job_id)
         if task is not None and not task.done():
-            report = self._set(p.job_id, J.RUNNING, percent=p.percent, best_cost=p.best_cost)
+            report = self._set(
+                p.job_id,
+                J.RUNNING,
+                percent=p.percent,
+                best_cost=p.best_cost,
+                first_safe_s=p.first_safe_s,
+            )
             pending = asyncio.ensure_future(report)
             self._reports.add(pending)
             pending.add_done_callback(self._reports.discard)
@@ -132,4 +138,5 @@ def _settings_json(settings: PlannerSettings) -> dict[str, Any]:
         "seed": settings.seed,
         "population": settings.population,
         "iterations": settings.iterations,
+        "time_budget_s": settings.time_budget_s,
     }

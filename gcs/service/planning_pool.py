@@ -34,10 +34,11 @@ class PlanCancelled(Exception):
 @dataclass(frozen=True)
 class JobProgress:
     job_id: str
-    percent: float  # an estimate: runs so far against one run per UAV
-    best_cost: float
+    percent: float  # of the time budget; without one, runs so far against one per UAV
+    best_cost: float  # of the cheapest safe plan so far, else of the current search
     run: int
     uav: str
+    first_safe_s: float | None = None  # when the first safe plan was found
 
 
 ProgressSink = Callable[[JobProgress], None]
@@ -132,8 +133,12 @@ def run_plan(
         last = at
         if cancelled.get(job_id):
             raise PlanCancelled(job_id)
-        done = (p.run - 1 + p.iteration / p.iterations) / max(expected_runs, p.run)
-        progress.put((job_id, round(min(99.0, 100 * done), 1), p.plan_cost, p.run, p.uav))
+        if p.budget_percent is not None:
+            percent = p.budget_percent
+        else:
+            percent = 100 * (p.run - 1 + p.iteration / p.iterations) / max(expected_runs, p.run)
+        cost = p.best_cost if p.best_cost is not None else p.plan_cost
+        progress.put((job_id, round(min(99.0, percent), 1), cost, p.run, p.uav, p.first_safe_s))
 
     if cancelled.get(job_id):
         raise PlanCancelled(job_id)

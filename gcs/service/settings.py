@@ -25,7 +25,12 @@ class Settings(BaseSettings):
         default=2.0, ge=0, le=60, description="how long a plan request waits before it answers 202"
     )
     max_plan_evaluations: int = Field(
-        default=2_000_000, ge=1, description="cap on population x iterations of one request"
+        default=2_000_000,
+        ge=1,
+        description="cap on population x iterations of a request without a time budget",
+    )
+    max_plan_seconds: float = Field(
+        default=120.0, gt=0, description="cap on the time budget of one plan request"
     )
     live_rate_hz: float = Field(default=10.0, gt=0, le=50)
 

@@ -74,10 +74,10 @@ def test_a_udpin_listener_sees_and_addresses_several_vehicles_on_one_port() -> N
                 0,
             )
             assert acks_from(listener, 1.0) == [2]
-            listener.mav.param_set_send(3, 1, b"WPNAV_SPEED", 500.0, mavlink.MAV_PARAM_TYPE_REAL32)
+            listener.mav.param_set_send(3, 1, b"WP_SPD", 5.0, mavlink.MAV_PARAM_TYPE_REAL32)
             reply = listener.recv_match(type="PARAM_VALUE", blocking=True, timeout=SEEN_S)
             assert reply is not None and reply.get_srcSystem() == 3
-            assert sim.vehicle(3).params.get("WPNAV_SPEED") == 500.0
-            assert sim.vehicle(1).params.get("WPNAV_SPEED") == 1000.0
+            assert sim.vehicle(3).params.get("WP_SPD") == 5.0
+            assert sim.vehicle(1).params.get("WP_SPD") == 10.0
     finally:
         listener.close()

@@ -505,7 +505,7 @@ def test_guided_takeoff_with_a_repeated_confirmation_is_idempotent(make_sim):
 
 @pytest.mark.parametrize(
     ("autopilot", "speed_param", "default"),
-    [("ardupilot", "WPNAV_SPEED", 1000.0), ("px4", "MPC_XY_CRUISE", 5.0)],
+    [("ardupilot", "WP_SPD", 10.0), ("px4", "MPC_XY_CRUISE", 5.0)],
 )
 def test_parameters_list_read_and_set(make_sim, autopilot, speed_param, default):
     sim, gcs = make_sim(autopilot)

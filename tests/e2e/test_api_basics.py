@@ -8,6 +8,7 @@ import time
 import httpx
 
 from planner.cases import load_case
+from tests.e2e.flying import wait_for
 from tests.service_process import ServiceProcess
 
 CASE_VI = load_case("case-6").model_dump(mode="json")
@@ -56,13 +57,16 @@ def test_a_long_plan_is_a_job_that_reports_progress_and_can_be_cancelled(
         sid = client.post("/scenarios", json=CASE_VI).json()["id"]
         answer = client.post(
             f"/scenarios/{sid}/plans",
-            json={"iterations": 20_000, "population": 60, "wait_s": 0},
+            json={"iterations": 20_000, "population": 60, "wait_s": 0, "time_budget_s": None},
         )
         assert answer.status_code == 202
         assert answer.headers["location"] == f"/jobs/{answer.json()['id']}"
         job = _wait_job(client, answer.json()["id"], {"running"})
-        time.sleep(0.5)
-        running = client.get(f"/jobs/{job['id']}").json()
+        running = wait_for(
+            lambda: (j := client.get(f"/jobs/{job['id']}").json())["percent"] > 0 and j,
+            30,
+            "a progress report",
+        )
         assert 0 < running["percent"] < 100 and running["best_cost"] is not None
         assert client.post(f"/jobs/{job['id']}/cancel").status_code == 202
         done = _wait_job(client, job["id"], {"cancelled", "done", "failed"}, timeout=10)

@@ -72,6 +72,12 @@ def test_case_vi_is_planned_uploaded_flown_and_recorded(
             uploaded = _when_online(client, fid)
             assert uploaded["flight"]["state"] == "uploaded", uploaded
             assert all(v["ok"] for v in uploaded["vehicles"])
+            for uav in ("uav1", "uav3"):  # the files users download are the missions flown
+                for kind in ("plan", "waypoints"):
+                    flown = client.get(f"/flights/{fid}/missions/{uav}.{kind}")
+                    offered = client.get(f"/plans/{plan['id']}/missions/{uav}.{kind}")
+                    assert flown.status_code == offered.status_code == 200
+                    assert flown.text == offered.text, (uav, kind)
 
             ws_url = service.url.replace("http", "ws") + f"/flights/{fid}/live"
             with connect(ws_url, open_timeout=10) as ws:

@@ -16,7 +16,7 @@ from planner.scenario import Scenario
 from sitl_mock import Simulator, VehicleConfig
 
 ALTITUDE_M = 10.0
-GOAL_RADIUS_M = 2.0  # ArduCopter's default WPNAV_RADIUS
+GOAL_RADIUS_M = 2.0  # ArduCopter's default WP_RADIUS_M
 
 
 @dataclass(frozen=True)

@@ -91,6 +91,16 @@ async def test_an_empty_mission_does_not_hang(simulator, links, autopilot: str) 
     assert not sim.mission(1)[1:]
 
 
+async def test_an_upload_right_after_boot_waits_for_the_boot_to_end(simulator, links) -> None:
+    """Real ArduCopter answers MISSION_COUNT with NO_SPACE while it boots."""
+    sim = simulator([vehicle(1)], speedup=1.0)
+    link = await links(sim, 1, settings=replace(FAST_LINK, link_timeout_s=4.0))
+    assert link.state.booting
+    mission = square_mission(link.autopilot)
+    assert (await MissionClient(link).upload(mission)).verified
+    assert len(sim.mission(1)) == len(mission)
+
+
 async def test_timeouts_are_settable(simulator, links) -> None:
     """Failure mode 1: a slow link needs longer timeouts than a fast one."""
     sim = simulator([vehicle(1, faults=Faults(latency_s=0.15))], speedup=1.0)

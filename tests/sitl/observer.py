@@ -81,7 +81,9 @@ class Observer:
             north = (np.interp(grid, a.t, a.lat) - np.interp(grid, b.t, b.lat)) * 111_320.0
             east = (np.interp(grid, a.t, a.lon) - np.interp(grid, b.t, b.lon)) * 111_320.0
             east *= math.cos(lat0)
-            up = (np.interp(grid, a.t, a.alt) > airborne_m) & (np.interp(grid, b.t, b.alt) > airborne_m)
+            up = (np.interp(grid, a.t, a.alt) > airborne_m) & (
+                np.interp(grid, b.t, b.alt) > airborne_m
+            )
             if up.any():
                 closest = float(np.min(np.hypot(north, east)[up]))
                 best = closest if best is None else min(best, closest)

@@ -19,7 +19,7 @@ from planner.experiments.scenario_generator import crossing_scenario
 from planner.scenario import Origin, Scenario
 from tests.e2e.flying import bind, online, register, wait_for
 from tests.service_process import ServiceProcess
-from tests.sitl.ardupilot_sitl import homes_at_starts, instances
+from tests.sitl.ardupilot_sitl import Instance, homes_at_starts, instances
 from tests.sitl.observer import observing
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow]
@@ -43,22 +43,21 @@ def test_mvo_gcs_fly_flies_real_arducopter(tmp_path: Path, name: str) -> None:
     source = tmp_path / "scenario.json"
     source.write_text(scenario.model_dump_json())
     speedup = SPEEDUP if len(scenario.uavs) <= 3 else 2.0
-    with instances(homes_at_starts(scenario), tmp_path, speedup=speedup) as sitl:
-        with observing([i.port for i in sitl]) as observer:
-            fly = subprocess.run(
-                [
-                    sys.executable, "-m", "gcs.cli.main", "fly", str(source),
-                    "--vehicles", ",".join(i.connection for i in sitl),
-                    "--time-budget", "5", "--connect-timeout", "60",
-                ],
-                capture_output=True, text=True, timeout=1800,
-            )  # fmt: skip
-            flown = observer.min_separation()
+    homes = homes_at_starts(scenario)
+    with instances(homes, tmp_path, speedup) as sitl, observing(_ports(sitl)) as observer:
+        command = [sys.executable, "-m", "gcs.cli.main", "fly", str(source)]
+        command += ["--vehicles", ",".join(i.connection for i in sitl), "--connect-timeout", "60"]
+        fly = subprocess.run(command, capture_output=True, text=True, timeout=1800)
+        flown = observer.min_separation()
     report = fly.stdout[-3000:] + fly.stderr[-3000:]
     print(report)
     assert fly.returncode == 0, report
     assert "separation flown" in fly.stdout
     assert flown is not None and flown >= two_r(scenario), (flown, report)
+
+
+def _ports(sitl: list[Instance]) -> list[int]:
+    return [instance.port for instance in sitl]
 
 
 def test_the_service_flies_case_vi_on_real_arducopter(tmp_path: Path) -> None:
@@ -67,7 +66,7 @@ def test_the_service_flies_case_vi_on_real_arducopter(tmp_path: Path) -> None:
     with instances(homes_at_starts(scenario), tmp_path, speedup=SPEEDUP) as sitl:
         service.start()
         try:
-            with service.client() as client, observing([i.port for i in sitl]) as observer:
+            with service.client() as client, observing(_ports(sitl)) as observer:
                 sid = client.post("/scenarios", json=scenario.model_dump(mode="json")).json()["id"]
                 plan = client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30}).json()
                 ids = [register(client, i.connection) for i in sitl]
@@ -78,9 +77,11 @@ def test_the_service_flies_case_vi_on_real_arducopter(tmp_path: Path) -> None:
                 assert all(v["ok"] for v in uploaded.json()["vehicles"]), uploaded.text
                 assert client.post(f"/flights/{flight}/start").status_code == 202
                 state = wait_for(
-                    lambda: (s := client.get(f"/flights/{flight}").json())["state"]
-                    in ("landed", "ended", "aborted", "interrupted")
-                    and s,
+                    lambda: (
+                        (s := client.get(f"/flights/{flight}").json())["state"]
+                        in ("landed", "ended", "aborted", "interrupted")
+                        and s
+                    ),
                     1500,
                     "the flight's end",
                     every=1.0,

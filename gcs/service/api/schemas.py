@@ -42,6 +42,13 @@ class PlanRequest(_In):
     seed: int = Field(default=1, ge=0, le=2**32 - 1)
     population: int = Field(default=30, ge=2, le=500)
     iterations: int = Field(default=200, ge=1, le=100_000)
+    time_budget_s: float | None = Field(
+        default=5.0,
+        gt=0,
+        le=600,
+        description="wall seconds for the whole plan: a safe plan as early as possible, "
+        "improved while the budget lasts; null: run every iteration (deterministic)",
+    )
     wait_s: float | None = Field(
         default=None,
         ge=0,
@@ -72,6 +79,9 @@ class JobOut(_Out):
     state: JobState
     percent: float
     best_cost: float | None
+    first_safe_s: float | None = Field(
+        default=None, description="when the job found its first safe plan"
+    )
     plan_id: str | None
     error: str | None
     settings: dict[str, Any]

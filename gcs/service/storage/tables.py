@@ -48,6 +48,7 @@ class JobRow(Base):
     state: Mapped[str] = mapped_column(String(16), default="queued")
     percent: Mapped[float] = mapped_column(Float, default=0.0)
     best_cost: Mapped[float | None] = mapped_column(Float, nullable=True)
+    first_safe_s: Mapped[float | None] = mapped_column(Float, nullable=True)
     plan_id: Mapped[str | None] = mapped_column(String(12), nullable=True)
     error: Mapped[str | None] = mapped_column(Text, nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)

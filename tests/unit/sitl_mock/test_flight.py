@@ -139,7 +139,7 @@ def test_rtl_climbs_flies_home_and_lands():
     sim.advance(20.0)
     assert flight.set_mode(FlightMode.RTL, sim.sim_time) == ACCEPTED
     sim.advance(8.0)
-    assert sim.state(1).alt == pytest.approx(15.0, abs=0.5)  # RTL_ALT 1500 cm
+    assert sim.state(1).alt == pytest.approx(15.0, abs=0.5)  # RTL_ALT_M 15
     sim.advance(60.0)
     state = sim.state(1)
     assert not state.armed and state.alt == 0.0

@@ -71,10 +71,17 @@ async def request_plan(
     at once (201); otherwise the answer is the job (202), whose progress can be polled at
     `/jobs/{id}` or watched on `/jobs/{id}/live`, and which can be cancelled."""
     budget = settings.max_plan_evaluations
-    if request.population * request.iterations > budget:
+    if request.time_budget_s is None and request.population * request.iterations > budget:
         detail = (
             f"population x iterations = {request.population * request.iterations} exceeds "
-            f"this service's limit of {budget} evaluations per optimizer run"
+            f"this service's limit of {budget} evaluations per optimizer run without a "
+            "time budget (give `time_budget_s`)"
+        )
+        return JSONResponse({"detail": detail}, status_code=422)
+    if request.time_budget_s is not None and request.time_budget_s > settings.max_plan_seconds:
+        detail = (
+            f"time_budget_s = {request.time_budget_s} exceeds this service's limit of "
+            f"{settings.max_plan_seconds} s per plan"
         )
         return JSONResponse({"detail": detail}, status_code=422)
     planner_settings = PlannerSettings(
@@ -83,6 +90,7 @@ async def request_plan(
         seed=request.seed,
         population=request.population,
         iterations=request.iterations,
+        time_budget_s=request.time_budget_s,
     )
     wait = settings.inline_plan_wait_s if request.wait_s is None else request.wait_s
     job = await planning.request(scenario_id, planner_settings, wait)
