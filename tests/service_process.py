@@ -29,7 +29,12 @@ class ServiceProcess:
         self.data_dir = data_dir
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
-        self.env = {**os.environ, "MVO_GCS_TOKEN": TOKEN, **(extra_env or {})}
+        self.env = {
+            **os.environ,
+            "MVO_GCS_TOKEN": TOKEN,
+            "MVO_GCS_DISCOVERY_URL": "",  # several services at once: no shared 14550
+            **(extra_env or {}),
+        }
         self.workers = workers
         self.process: subprocess.Popen[str] | None = None
         self.log = data_dir / "service.log"

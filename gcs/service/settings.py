@@ -33,6 +33,16 @@ class Settings(BaseSettings):
         default=120.0, gt=0, description="cap on the time budget of one plan request"
     )
     live_rate_hz: float = Field(default=10.0, gt=0, le=50)
+    discovery_url: str = Field(
+        default="udpin:127.0.0.1:14550",
+        description="UDP port where vehicles that announce themselves are heard (as "
+        "QGroundControl listens); empty: no discovery",
+    )
+    listen_beyond_loopback: bool = Field(
+        default=False,
+        description="allow listening (udpin:) on addresses other than loopback, for the "
+        "discovery port and for registered vehicles",
+    )
 
     @property
     def resolved_database_url(self) -> str:

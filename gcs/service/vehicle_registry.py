@@ -20,6 +20,7 @@ from gcs.mavlink.connection import Signing
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.vehicle_state import VehicleState
+from gcs.service.discovery import Discovery
 from gcs.service.metrics import ServiceMetrics
 
 log = logging.getLogger("mvo_gcs.vehicles")
@@ -41,13 +42,20 @@ class _Entry:
     task: asyncio.Task[None] | None = None
     link: VehicleLink | None = None
     last_error: str = "not connected yet"
+    shared: bool = False  # a discovered vehicle's link: not ours to close
 
 
 class VehicleRegistry:
-    def __init__(self, metrics: ServiceMetrics, settings: LinkSettings | None = None) -> None:
+    def __init__(
+        self,
+        metrics: ServiceMetrics,
+        settings: LinkSettings | None = None,
+        discovery: Discovery | None = None,
+    ) -> None:
         self._metrics = metrics
         self._settings = settings or LinkSettings()
         self._entries: dict[str, _Entry] = {}
+        self.discovery = discovery
         self.registering = asyncio.Lock()  # one registration at a time: its duplicate check holds
 
     def add(
@@ -55,7 +63,11 @@ class VehicleRegistry:
     ) -> None:
         entry = _Entry(connection, sysid, signing)
         self._entries[vehicle_id] = entry
-        entry.task = asyncio.ensure_future(self._keep_connected(vehicle_id, entry))
+        if self.discovery is not None and self.discovery.serves(connection):
+            entry.shared = True  # the listening port's link, owned by discovery
+            entry.task = asyncio.ensure_future(self._follow_discovered(vehicle_id, entry))
+        else:
+            entry.task = asyncio.ensure_future(self._keep_connected(vehicle_id, entry))
 
     async def remove(self, vehicle_id: str) -> None:
         entry = self._entries.pop(vehicle_id, None)
@@ -127,9 +139,22 @@ class VehicleRegistry:
                 continue
             log.info("vehicle %s connected: %r", vehicle_id, entry.link)
             break
-        while True:  # the link re-finds a vehicle that went quiet; just report it
-            self._metrics.link_up.labels(vehicle_id).set(int(entry.link.state.link_up))
-            self._metrics.ignored_packets.labels(vehicle_id).set(entry.link.connection.dropped)
+        await self._report(vehicle_id, entry.link)
+
+    async def _follow_discovered(self, vehicle_id: str, entry: _Entry) -> None:
+        assert self.discovery is not None
+        entry.last_error = f"not heard on {entry.connection} yet"
+        while (link := self.discovery.link(entry.sysid)) is None:
+            self._metrics.link_up.labels(vehicle_id).set(0)
+            await asyncio.sleep(0.2)
+        entry.link = link
+        await self._report(vehicle_id, link)
+
+    async def _report(self, vehicle_id: str, link: VehicleLink) -> None:
+        """The link re-finds a vehicle that went quiet by itself; this only reports it."""
+        while True:
+            self._metrics.link_up.labels(vehicle_id).set(int(link.state.link_up))
+            self._metrics.ignored_packets.labels(vehicle_id).set(link.connection.dropped)
             await asyncio.sleep(1.0)
 
 
@@ -138,7 +163,7 @@ async def _close(entry: _Entry) -> None:
     if entry.task is not None:
         entry.task.cancel()
         await asyncio.wait({entry.task}, timeout=CLOSE_TIMEOUT_S)
-    if entry.link is not None:
+    if entry.link is not None and not entry.shared:
         try:
             async with asyncio.timeout(CLOSE_TIMEOUT_S):
                 await entry.link.close()

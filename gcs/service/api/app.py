@@ -18,7 +18,15 @@ from gcs.mavlink.errors import GcsError
 from gcs.service.api.auth import ensure_token
 from gcs.service.api.body_limit import BodySizeLimit
 from gcs.service.api.deps import Services
-from gcs.service.api.routers import flights, health, missions, plans, scenarios, vehicles
+from gcs.service.api.routers import (
+    cases,
+    flights,
+    health,
+    missions,
+    plans,
+    scenarios,
+    vehicles,
+)
 from gcs.service.flights.service import BadBindings, BadObject
 from gcs.service.planning_pool import PlanningPool
 from gcs.service.settings import Settings
@@ -50,6 +58,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         services = Services.build(settings, db)
         services.events.start()
         services.loop_lag.start()
+        if services.discovery is not None:
+            await services.discovery.start()
         pool = PlanningPool(settings.plan_workers, services.planning.on_progress)
         pool.start()
         services.planning.pool = pool
@@ -64,6 +74,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await services.operator.close()
             await services.flights.close()
             await services.registry.close()
+            if services.discovery is not None:
+                await services.discovery.close()
             await services.events.close()
             await services.planning.shutdown()
             services.loop_lag.stop()
@@ -77,7 +89,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
     )
     app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
-    routers = (scenarios, plans, missions, vehicles, flights, health)
+    routers = (scenarios, plans, missions, vehicles, flights, cases, health)
     for module in routers:
         app.include_router(module.router)
     _add_error_handlers(app)
@@ -123,4 +135,5 @@ def _add_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(BadBindings, problem(422))
     app.add_exception_handler(BadObject, problem(422))
     app.add_exception_handler(EndpointError, problem(422))
+    app.add_exception_handler(vehicles.BadConnection, problem(422))
     app.add_exception_handler(GcsError, problem(502))  # the vehicle, not the request

@@ -14,6 +14,7 @@ from starlette.requests import HTTPConnection
 
 from gcs.service.api.auth import require_token
 from gcs.service.api.schemas import Problem
+from gcs.service.discovery import Discovery
 from gcs.service.flights.book import FlightBook
 from gcs.service.flights.event_writer import EventWriter
 from gcs.service.flights.operator import OperatorCommands
@@ -51,13 +52,15 @@ class Services:
     flights: FlightService
     operator: OperatorCommands
     loop_lag: LoopLagProbe
+    discovery: Discovery | None
 
     @classmethod
     def build(cls, settings: Settings, db: Database) -> Services:
         metrics = ServiceMetrics()
         scenarios, plans, jobs = ScenarioRepository(db), PlanRepository(db), JobRepository(db)
         vehicles, flight_records = VehicleRepository(db), FlightRepository(db)
-        registry = VehicleRegistry(metrics)
+        discovery = discovery_for(settings)
+        registry = VehicleRegistry(metrics, discovery=discovery)
         events = EventWriter(flight_records)
         flights = FlightService(
             book=FlightBook(flight_records, events),
@@ -82,7 +85,21 @@ class Services:
             flights=flights,
             operator=OperatorCommands(flights, registry),
             loop_lag=LoopLagProbe(metrics.loop_lag),
+            discovery=discovery,
         )
+
+
+def discovery_for(settings: Settings) -> Discovery | None:
+    """The listening port, if configured; beyond loopback only when that is allowed."""
+    if not settings.discovery_url:
+        return None
+    discovery = Discovery(settings.discovery_url)
+    if not discovery.endpoint.is_loopback and not settings.listen_beyond_loopback:
+        raise ValueError(
+            f"discovery_url {settings.discovery_url} listens beyond this machine: set "
+            "MVO_GCS_LISTEN_BEYOND_LOOPBACK=1 to allow it"
+        )
+    return discovery
 
 
 def get_services(connection: HTTPConnection) -> Services:

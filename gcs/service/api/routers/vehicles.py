@@ -10,12 +10,19 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 from sqlalchemy.exc import IntegrityError
 
 from gcs.mavlink.endpoint import Endpoint, EndpointError
-from gcs.service.api.deps import FlightsDep, OperatorDep, RegistryDep, VehiclesDep, mutating
+from gcs.service.api.deps import (
+    FlightsDep,
+    OperatorDep,
+    RegistryDep,
+    SettingsDep,
+    VehiclesDep,
+    mutating,
+)
 from gcs.service.api.routers.flights import VehicleAnswerOut
 from gcs.service.api.schemas import Problem, UtcDatetime
 from gcs.service.states import StateConflict
 from gcs.service.storage.tables import VehicleRow
-from gcs.service.vehicle_registry import VehicleRegistry
+from gcs.service.vehicle_registry import VehicleRegistry, describe
 
 router = APIRouter(prefix="/vehicles", tags=["vehicles"])
 NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": Problem}}
@@ -60,6 +67,17 @@ class AlreadyRegistered(Exception):
     pass
 
 
+class BadConnection(ValueError):
+    """A connection string the service will not open (answered 422)."""
+
+
+class DiscoveredOut(BaseModel):
+    sysid: int
+    connection: str = Field(description="register it with this and its sysid")
+    vehicle_id: str | None = Field(description="the registered vehicle it is, if any")
+    live: dict[str, Any]
+
+
 def _out(row: VehicleRow, registry: VehicleRegistry) -> VehicleOut:
     return VehicleOut(
         id=row.id,
@@ -78,11 +96,20 @@ def _out(row: VehicleRow, registry: VehicleRegistry) -> VehicleOut:
     **mutating({409: {"model": Problem, "description": "already registered"}}),
 )
 async def register_vehicle(
-    vehicle: VehicleIn, vehicles: VehiclesDep, registry: RegistryDep
+    vehicle: VehicleIn, vehicles: VehiclesDep, registry: RegistryDep, settings: SettingsDep
 ) -> VehicleOut:
     """Register a vehicle; the service connects (and reconnects) to it from now on. One
     endpoint and system id is one vehicle, however its connection string is spelled."""
     endpoint = Endpoint.parse(vehicle.connection)
+    if (
+        endpoint.kind == "udpin"
+        and not endpoint.is_loopback
+        and not settings.listen_beyond_loopback
+    ):
+        raise BadConnection(
+            f"{vehicle.connection} listens beyond this machine; the service listens on "
+            "loopback only unless MVO_GCS_LISTEN_BEYOND_LOOPBACK is set"
+        )
     resolved = str(await endpoint.resolved())
     async with registry.registering:
         for spelling in dict.fromkeys((vehicle.connection, resolved)):
@@ -111,6 +138,25 @@ async def list_vehicles(
     offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[VehicleOut]:
     return [_out(row, registry) for row in await vehicles.page(limit, offset)]
+
+
+@router.get("/discovered", operation_id="listDiscovered")
+async def list_discovered(vehicles: VehiclesDep, registry: RegistryDep) -> list[DiscoveredOut]:
+    """Every autopilot heard on the service's listening port (`discovery_url`), as
+    QGroundControl would list them, whether registered or not."""
+    discovery = registry.discovery
+    if discovery is None:
+        return []
+    registered = {(row.connection, row.sysid): row.id for row in await vehicles.page(1000, 0)}
+    return [
+        DiscoveredOut(
+            sysid=sysid,
+            connection=discovery.url,
+            vehicle_id=registered.get((discovery.url, sysid)),
+            live=describe(link),
+        )
+        for sysid, link in sorted(discovery.links.items())
+    ]
 
 
 @router.get("/{vehicle_id}", operation_id="getVehicle", responses=NOT_FOUND)
