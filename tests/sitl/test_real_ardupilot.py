@@ -51,6 +51,7 @@ def test_mvo_gcs_fly_flies_real_arducopter(tmp_path: Path, name: str) -> None:
         flown = observer.min_separation()
     report = fly.stdout[-3000:] + fly.stderr[-3000:]
     print(report)
+    print(f"{name}: observer min separation {flown} m, 2R {two_r(scenario):.2f} m")
     assert fly.returncode == 0, report
     assert "separation flown" in fly.stdout
     assert flown is not None and flown >= two_r(scenario), (flown, report)
