@@ -305,11 +305,23 @@ async def fly(
         fid = flight["id"]
         upload_s = await timed(lambda: upload_when_online(client, fid))
         started = time.perf_counter()
-        answer = await ok(client.post(f"/flights/{fid}/start"))
+        await ok(client.post(f"/flights/{fid}/start"), 202)
+        await until_state(client, fid, "flying")
         start_s = time.perf_counter() - started
-        if answer["flight"]["state"] != "flying":
-            raise RuntimeError(f"the flight did not start: {answer}")
         return {"id": fid, "upload_s": upload_s, "start_s": start_s}
+
+
+async def until_state(client: httpx.AsyncClient, fid: str, *states: str) -> str:
+    """Poll the flight until it is in one of `states` (start answers at once, 202)."""
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline:
+        state = (await ok(client.get(f"/flights/{fid}")))["state"]
+        if state in states:
+            return str(state)
+        if state in ("interrupted", "uploaded", "aborted", "ended"):
+            raise RuntimeError(f"flight {fid} is {state}, not {states}")
+        await asyncio.sleep(0.1)
+    raise TimeoutError(f"flight {fid} never became {states}")
 
 
 async def timed(call: Callable[[], Awaitable[object]]) -> float:

@@ -20,6 +20,14 @@ class Settings(BaseSettings):
     token: str | None = Field(default=None, description="bearer token for mutating requests")
     show_token: bool = Field(default=False, description="print the token itself at start-up")
     max_body_bytes: int = Field(default=1_000_000, ge=1_000)
+    body_timeout_s: float = Field(
+        default=10.0, gt=0, le=600, description="a request body must arrive within this"
+    )
+    allowed_hosts: list[str] = Field(
+        default_factory=lambda: ["127.0.0.1", "localhost", "::1"],
+        description="Host header names (and WebSocket origins) the service answers to; "
+        "the bind address is added when it is a specific one",
+    )
     plan_workers: int = Field(default=2, ge=1, le=64, description="planning processes")
     inline_plan_wait_s: float = Field(
         default=2.0, ge=0, le=60, description="how long a plan request waits before it answers 202"
@@ -43,6 +51,13 @@ class Settings(BaseSettings):
         description="allow listening (udpin:) on addresses other than loopback, for the "
         "discovery port and for registered vehicles",
     )
+
+    @property
+    def host_names(self) -> frozenset[str]:
+        names = {name.strip("[]").lower() for name in self.allowed_hosts}
+        if self.host not in ("0.0.0.0", "::", ""):
+            names.add(self.host.strip("[]").lower())
+        return frozenset(names)
 
     @property
     def resolved_database_url(self) -> str:

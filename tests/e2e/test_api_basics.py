@@ -108,9 +108,12 @@ def test_bad_requests_get_a_4xx_that_says_what_and_where(service: ServiceProcess
         bad_algorithm = client.post(f"/scenarios/{sid}/plans", json={"algorithm": "pso"})
         assert bad_algorithm.status_code == 422 and "pso" in bad_algorithm.text
         too_big = client.post(
-            f"/scenarios/{sid}/plans", json={"population": 500, "iterations": 100_000}
+            f"/scenarios/{sid}/plans",
+            json={"population": 500, "iterations": 100_000, "time_budget_s": None},
         )
         assert too_big.status_code == 422 and "limit" in too_big.json()["detail"]
+        too_long = client.post(f"/scenarios/{sid}/plans", json={"time_budget_s": 500})
+        assert too_long.status_code == 422 and "limit" in too_long.json()["detail"]
 
         huge = client.post(
             "/scenarios",

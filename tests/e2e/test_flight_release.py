@@ -29,7 +29,13 @@ FLOWN = 2  # flown there and back; the others uploaded and cancelled
 
 @pytest.fixture
 def service(tmp_path: Path) -> Iterator[TestClient]:
-    settings = Settings(data_dir=tmp_path / "data", token=TOKEN, discovery_url="", plan_workers=1)
+    settings = Settings(
+        data_dir=tmp_path / "data",
+        token=TOKEN,
+        discovery_url="",
+        plan_workers=1,
+        allowed_hosts=["testserver"],  # Starlette's TestClient's Host
+    )
     with TestClient(create_app(settings)) as client:
         client.headers["Authorization"] = f"Bearer {TOKEN}"
         yield client
@@ -67,7 +73,9 @@ def test_fifty_flights_in_a_row_leave_callbacks_and_memory_flat(service: TestCli
 
 
 def _plan(client: TestClient, scenario: Scenario) -> str:
-    sid = client.post("/scenarios", json=scenario.model_dump(mode="json")).json()["id"]
+    answer = client.post("/scenarios", json=scenario.model_dump(mode="json"))
+    assert answer.status_code == 201, answer.text
+    sid = answer.json()["id"]
     plan = client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30}).json()
     assert plan["plan"]["feasible"], plan
     return str(plan["id"])

@@ -16,8 +16,8 @@ from starlette.routing import Route
 from gcs.mavlink.endpoint import EndpointError
 from gcs.mavlink.errors import GcsError
 from gcs.service.api.auth import ensure_token
-from gcs.service.api.body_limit import BodySizeLimit
 from gcs.service.api.deps import Services
+from gcs.service.api.request_guard import RequestGuard
 from gcs.service.api.routers import (
     cases,
     flights,
@@ -88,7 +88,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         description=DESCRIPTION,
         lifespan=lifespan,
     )
-    app.add_middleware(BodySizeLimit, max_bytes=settings.max_body_bytes)
+    app.add_middleware(
+        RequestGuard,
+        token=lambda: app.state.token,
+        hosts=settings.host_names,
+        max_bytes=settings.max_body_bytes,
+        body_timeout_s=settings.body_timeout_s,
+    )
     routers = (scenarios, plans, missions, vehicles, flights, cases, health)
     for module in routers:
         app.include_router(module.router)
