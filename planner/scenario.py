@@ -23,7 +23,7 @@ Cell = tuple[Annotated[int, Field(strict=True)], Annotated[int, Field(strict=Tru
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     @field_validator("*", mode="before")
     @classmethod
@@ -48,7 +48,9 @@ class Origin(_Strict):
 
     lat: float = Field(ge=-90, le=90)
     lon: float = Field(ge=-180, le=180)
-    alt_m: float = Field(default=0.0, description="ground altitude, metres above MSL")
+    alt_m: float = Field(
+        default=0.0, ge=-500, le=9_000, description="ground altitude, metres above MSL"
+    )
 
 
 class UAVSpec(_Strict):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import uvicorn
@@ -35,6 +36,7 @@ def settings_from(args: argparse.Namespace) -> Settings:
 
 
 def run(args: argparse.Namespace) -> int:
+    os.umask(0o077)  # the database's journal files too: the owner's only
     settings = settings_from(args)
     serve(settings)
     return 0

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import hashlib
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -45,6 +46,15 @@ class Signing:
     def __post_init__(self) -> None:
         if len(self.key) != 32:
             raise ValueError(f"a MAVLink signing key has 32 bytes, got {len(self.key)}")
+
+    @classmethod
+    def from_text(cls, text: str) -> Signing:
+        """64 hex digits, or a passphrase hashed as MAVProxy's `signing setup` does."""
+        try:
+            key = bytes.fromhex(text)
+        except ValueError:
+            key = b""
+        return cls(key if len(key) == 32 else hashlib.sha256(text.encode()).digest())
 
     def apply(self, codec: Any, *, outgoing: bool) -> None:
         codec.signing.secret_key = self.key

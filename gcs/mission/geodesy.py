@@ -18,6 +18,9 @@ from numpy.typing import ArrayLike, NDArray
 from planner.scenario import Scenario
 
 Floats = NDArray[np.float64]
+MAX_EXTENT_M = 100_000.0
+"""A grid is flown as one tangent plane, whose east-north metres part from the ground's
+by about d^3 / 6R^2: 4 m at 100 km across, and growing with the cube beyond."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,6 +37,12 @@ class GridFrame:
         """The scenario's frame; a scenario without an origin can be planned but not flown."""
         if scenario.origin is None:
             raise ValueError(f"scenario {scenario.name!r} has no origin: it cannot be flown")
+        extent = max(scenario.grid.width, scenario.grid.height) * scenario.grid.cell_size_m
+        if extent > MAX_EXTENT_M:
+            raise ValueError(
+                f"scenario {scenario.name!r} spans {extent / 1000:.0f} km: a flat grid is "
+                f"flown only up to {MAX_EXTENT_M / 1000:.0f} km across"
+            )
         o = scenario.origin
         return cls(o.lat, o.lon, o.alt_m, scenario.grid.cell_size_m)
 

@@ -29,15 +29,43 @@ CODEC = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
         ("udpin:0.0.0.0:14550", Endpoint("udpin", "0.0.0.0", 14550)),
         ("udp:0.0.0.0:14550", Endpoint("udpin", "0.0.0.0", 14550)),
         ("tcp:localhost:5760", Endpoint("tcp", "localhost", 5760)),
+        ("UDPOUT:LocalHost.:014560", Endpoint("udpout", "localhost", 14560)),
+        ("tcp:[::1]:5760", Endpoint("tcp", "::1", 5760)),
+        ("tcp:[0:0::1]:5760", Endpoint("tcp", "::1", 5760)),
     ],
 )
 def test_connection_strings_as_mavutil_names_them(url: str, expected: Endpoint) -> None:
     assert Endpoint.parse(url) == expected
 
 
+def test_one_endpoint_has_one_canonical_spelling() -> None:
+    spellings = ["udp:127.0.0.1:14550", "udpin:127.0.0.1:014550", " UDPIN:127.0.0.1:14550"]
+    assert {str(Endpoint.parse(s)) for s in spellings} == {"udpin:127.0.0.1:14550"}
+    assert str(Endpoint.parse("tcp:[::1]:5760")) == "tcp:[::1]:5760"
+    assert Endpoint.parse("udpin:0.0.0.0:14550").is_wildcard
+    assert Endpoint.parse("tcp:[::1]:5760").is_loopback
+
+
 @pytest.mark.parametrize("url", ["serial:/dev/ttyUSB0", "udpout:127.0.0.1", "tcp::x", "14550"])
 def test_bad_connection_strings_say_what_is_expected(url: str) -> None:
-    with pytest.raises(LinkError, match="expected udpout:HOST:PORT"):
+    with pytest.raises(LinkError, match=r"expected udpout:HOST:PORT|IPv6 address in brackets"):
+        Endpoint.parse(url)
+
+
+@pytest.mark.parametrize(
+    ("url", "why"),
+    [
+        ("udpout:127.0.0.1:0", "from 1 to 65535"),
+        ("udpout:127.0.0.1:65536", "from 1 to 65535"),
+        ("udpout:127.0.0.1:١٤٥٦٠", "a number from 1 to 65535"),
+        ("udpout:::1:14560", "IPv6 address in brackets"),
+        ("tcp:[::g]:5760", "not an IPv6 address"),
+        ("tcp:999.1.1.1:5760", "not a valid IPv4 address"),
+        ("tcp:bad_name:5760", "neither an IP address nor a host name"),
+    ],
+)
+def test_what_cannot_work_is_refused_saying_why(url: str, why: str) -> None:
+    with pytest.raises(LinkError, match=why):
         Endpoint.parse(url)
 
 

@@ -13,6 +13,7 @@ from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Route
 
+from gcs.mavlink.connection import Signing
 from gcs.mavlink.endpoint import EndpointError
 from gcs.mavlink.errors import GcsError
 from gcs.service.api.auth import ensure_token
@@ -49,7 +50,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        settings.data_dir.mkdir(parents=True, exist_ok=True, mode=0o700)
+        _private_directory(settings.data_dir)
         db = Database(settings.resolved_database_url)
         recovered = await db.run(db.recover)
         if any(recovered.values()):
@@ -64,7 +65,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         pool.start()
         services.planning.pool = pool
         for vehicle in await services.vehicles.page(limit=10_000):
-            services.registry.add(vehicle.id, vehicle.connection, vehicle.sysid)
+            signing = Signing.from_text(vehicle.signing_key) if vehicle.signing_key else None
+            services.registry.add(vehicle.id, vehicle.connection, vehicle.sysid, signing)
         await services.operator.after_restart()
         app.state.token, app.state.token_file, app.state.services = token, token_file, services
         _announce(settings, token, token_file)
@@ -100,6 +102,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(module.router)
     _add_error_handlers(app)
     return app
+
+
+def _private_directory(path: Path) -> None:
+    """The data directory holds every plan, flight and the token: its owner's only."""
+    path.mkdir(parents=True, exist_ok=True, mode=0o700)
+    if path.stat().st_mode & 0o077:
+        path.chmod(0o700)
 
 
 def _methods_at(request: Request) -> list[str]:

@@ -9,8 +9,11 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validat
 
 from gcs.service.states import JobState
 from planner.optimizers import ALGORITHMS
-from planner.plan import Plan
+from planner.plan import Metrics, Plan
 from planner.scenario import Scenario
+
+MAX_PAGE = 200
+"""The most rows one list answer carries (each summarised): a bound on its size."""
 
 
 def _utc(value: datetime) -> datetime:
@@ -34,6 +37,28 @@ class ScenarioOut(_Out):
     name: str
     created_at: UtcDatetime
     scenario: Scenario
+
+
+class ScenarioSummary(_Out):
+    """A scenario in a list: what tells it apart (GET /scenarios/{id} gives all of it)."""
+
+    id: str
+    name: str
+    created_at: UtcDatetime
+    grid: list[int] = Field(description="[width, height] in cells")
+    uavs: int
+
+
+class PlanSummary(_Out):
+    """A plan in a list: its verdict and metrics (GET /plans/{id} gives the paths)."""
+
+    id: str
+    scenario_id: str
+    created_at: UtcDatetime
+    feasible: bool
+    algorithm: str
+    objective: str
+    metrics: Metrics
 
 
 class PlanRequest(_In):

@@ -99,8 +99,10 @@ class FlightService:
         async with slot.serial():
             row = await self.book.row(flight_id)
             FlightState(row.state).check(F.UPLOADING, flight_id)
+            plan, scenario = await self._flyable(row)
             links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
-            paced = await self._paced(row, links)
+            autopilots = {uav: link.autopilot for uav, link in links.items()}
+            paced = paced_flight(plan, scenario, autopilots, **row.options)
             async with self.book.claims:
                 await self.book.refuse_owned(row.bindings, flight_id)
                 _refuse_airborne(row, links)
@@ -112,7 +114,8 @@ class FlightService:
                 return self._answers(active, {}, note="cancelled: the flight was aborted")
             return self._answers(active, outcomes)
 
-    async def _paced(self, row: FlightRow, links: dict[str, VehicleLink]) -> PacedFlight:
+    async def _flyable(self, row: FlightRow) -> tuple[Plan, Scenario]:
+        """The flight's plan and scenario, refusing a scenario that cannot be flown."""
         plan_row = await self.plans.get(row.plan_id)
         scenario = Scenario(**(await self.scenarios.get(plan_row.scenario_id)).body)
         if scenario.origin is None:
@@ -120,8 +123,7 @@ class FlightService:
                 f"flight {row.id}: scenario {plan_row.scenario_id} has no origin (latitude, "
                 "longitude, altitude of cell 0, 0), so its plan cannot be flown; give it one"
             )
-        autopilots = {uav: link.autopilot for uav, link in links.items()}
-        return paced_flight(Plan(**plan_row.body), scenario, autopilots, **row.options)
+        return Plan(**plan_row.body), scenario
 
     def _activate(
         self, row: FlightRow, links: dict[str, VehicleLink], paced: PacedFlight

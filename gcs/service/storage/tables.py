@@ -61,6 +61,7 @@ class VehicleRow(Base):
     name: Mapped[str] = mapped_column(String(100))
     connection: Mapped[str] = mapped_column(String(200))  # canonical (gcs.mavlink.endpoint)
     sysid: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    signing_key: Mapped[str | None] = mapped_column(Text, nullable=True)  # never shown
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
     __table_args__ = (UniqueConstraint("connection", "sysid"),)
 

@@ -25,7 +25,7 @@ from gcs.service.api.deps import (
     get_services,
     mutating,
 )
-from gcs.service.api.schemas import Problem, UtcDatetime
+from gcs.service.api.schemas import MAX_PAGE, Problem, UtcDatetime
 from gcs.service.flights.active import VehicleAnswer
 from gcs.service.states import FlightState
 from gcs.service.storage import NotFound
@@ -195,7 +195,7 @@ async def create_flight(flight: FlightIn, flights: FlightsDep) -> FlightOut:
 @router.get("", operation_id="listFlights")
 async def list_flights(
     records: FlightRecordsDep,
-    limit: int = Query(default=100, ge=1, le=1000),
+    limit: int = Query(default=50, ge=1, le=MAX_PAGE),
     offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[FlightOut]:
     return [flight_out(row) for row in await records.page(limit, offset)]

@@ -19,7 +19,7 @@ from gcs.service.api.deps import (
     get_services,
     mutating,
 )
-from gcs.service.api.schemas import JobOut, PlanOut, PlanRequest, Problem
+from gcs.service.api.schemas import MAX_PAGE, JobOut, PlanOut, PlanRequest, PlanSummary, Problem
 from gcs.service.states import OPEN, JobState, StateConflict
 from gcs.service.storage.tables import JobRow, PlanRow
 from planner.pipeline import PlannerSettings
@@ -109,10 +109,24 @@ async def list_plans(
     scenario_id: str,
     scenarios: ScenariosDep,
     plans: PlansDep,
-    limit: int = Query(default=100, ge=1, le=1000),
-) -> list[PlanOut]:
+    limit: int = Query(default=50, ge=1, le=MAX_PAGE),
+) -> list[PlanSummary]:
+    """Oldest first, without paths or histories (GET /plans/{id} has them)."""
     await scenarios.get(scenario_id)
-    return [plan_out(row) for row in await plans.for_scenario(scenario_id, limit)]
+    return [_summary(row) for row in await plans.for_scenario(scenario_id, limit)]
+
+
+def _summary(row: PlanRow) -> PlanSummary:
+    body = row.body
+    return PlanSummary(
+        id=row.id,
+        scenario_id=row.scenario_id,
+        created_at=row.created_at,
+        feasible=row.feasible,
+        algorithm=body["algorithm"],
+        objective=body["objective"],
+        metrics=body["metrics"],
+    )
 
 
 @router.get("/plans/{plan_id}", operation_id="getPlan", responses=NOT_FOUND)
@@ -142,7 +156,7 @@ async def delete_plan(plan_id: str, plans: PlansDep, flights: FlightsDep) -> Non
 @router.get("/jobs", tags=["jobs"], operation_id="listJobs")
 async def list_jobs(
     jobs: JobsDep,
-    limit: int = Query(default=100, ge=1, le=1000),
+    limit: int = Query(default=50, ge=1, le=MAX_PAGE),
     offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[JobOut]:
     return [JobOut.model_validate(row) for row in await jobs.page(limit, offset)]

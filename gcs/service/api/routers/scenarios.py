@@ -7,7 +7,7 @@ from typing import Any
 from fastapi import APIRouter, Query, status
 
 from gcs.service.api.deps import FlightsDep, PlanningDep, PlansDep, ScenariosDep, mutating
-from gcs.service.api.schemas import Problem, ScenarioOut
+from gcs.service.api.schemas import MAX_PAGE, Problem, ScenarioOut, ScenarioSummary
 from gcs.service.states import OPEN, StateConflict
 from gcs.service.storage.tables import ScenarioRow
 from planner.scenario import Scenario
@@ -43,10 +43,22 @@ async def create_scenario(scenario: Scenario, scenarios: ScenariosDep) -> Scenar
 @router.get("", operation_id="listScenarios")
 async def list_scenarios(
     scenarios: ScenariosDep,
-    limit: int = Query(default=100, ge=1, le=1000),
+    limit: int = Query(default=50, ge=1, le=MAX_PAGE),
     offset: int = Query(default=0, ge=0, le=10**9),
-) -> list[ScenarioOut]:
-    return [_out(row) for row in await scenarios.page(limit, offset)]
+) -> list[ScenarioSummary]:
+    """Oldest first, summarised (a page of whole scenarios could be megabytes)."""
+    return [_summary(row) for row in await scenarios.page(limit, offset)]
+
+
+def _summary(row: ScenarioRow) -> ScenarioSummary:
+    grid = row.body.get("grid", {})
+    return ScenarioSummary(
+        id=row.id,
+        name=row.name,
+        created_at=row.created_at,
+        grid=[grid.get("width", 0), grid.get("height", 0)],
+        uavs=len(row.body.get("uavs", [])),
+    )
 
 
 @router.get("/{scenario_id}", operation_id="getScenario", responses=NOT_FOUND)

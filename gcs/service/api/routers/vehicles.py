@@ -9,6 +9,7 @@ from fastapi import APIRouter, Query, status
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 from sqlalchemy.exc import IntegrityError
 
+from gcs.mavlink.connection import Signing
 from gcs.mavlink.endpoint import Endpoint, EndpointError
 from gcs.service.api.deps import (
     FlightsDep,
@@ -19,7 +20,7 @@ from gcs.service.api.deps import (
     mutating,
 )
 from gcs.service.api.routers.flights import VehicleAnswerOut
-from gcs.service.api.schemas import Problem, UtcDatetime
+from gcs.service.api.schemas import MAX_PAGE, Problem, UtcDatetime
 from gcs.service.states import StateConflict
 from gcs.service.storage.tables import VehicleRow
 from gcs.service.vehicle_registry import VehicleRegistry, describe
@@ -44,6 +45,14 @@ class VehicleIn(BaseModel):
         default=None, ge=1, le=255, description="the autopilot's system id; default: first heard"
     )
     name: str | None = Field(default=None, max_length=100)
+    signing_key: str | None = Field(
+        default=None,
+        min_length=8,
+        max_length=200,
+        description="MAVLink 2 signing: 64 hex digits, or a passphrase (as MAVProxy's "
+        "`signing setup`). Every packet to the vehicle is then signed and every unsigned "
+        "or wrongly signed one from it dropped. Stored, never shown again.",
+    )
 
     @field_validator("connection")
     @classmethod
@@ -59,6 +68,7 @@ class VehicleOut(BaseModel):
     name: str
     connection: str
     sysid: int | None
+    signed: bool = Field(description="MAVLink 2 signing is on for this vehicle")
     created_at: UtcDatetime
     live: dict[str, Any] = Field(description="the vehicle's state as last heard")
 
@@ -84,6 +94,7 @@ def _out(row: VehicleRow, registry: VehicleRegistry) -> VehicleOut:
         name=row.name,
         connection=row.connection,
         sysid=row.sysid,
+        signed=row.signing_key is not None,
         created_at=row.created_at,
         live=registry.state(row.id),
     )
@@ -120,21 +131,28 @@ async def register_vehicle(
                     f"registered as vehicle {existing.id} ({existing.connection})"
                 )
         row = VehicleRow(
-            name=vehicle.name or vehicle.connection, connection=resolved, sysid=vehicle.sysid
+            name=vehicle.name or vehicle.connection,
+            connection=resolved,
+            sysid=vehicle.sysid,
+            signing_key=vehicle.signing_key,
         )
         try:
             await vehicles.add(row)
         except IntegrityError:
             raise AlreadyRegistered(f"{vehicle.connection} is already registered") from None
-    registry.add(row.id, row.connection, row.sysid)
+    registry.add(row.id, row.connection, row.sysid, _signing(row))
     return _out(row, registry)
+
+
+def _signing(row: VehicleRow) -> Signing | None:
+    return Signing.from_text(row.signing_key) if row.signing_key else None
 
 
 @router.get("", operation_id="listVehicles")
 async def list_vehicles(
     vehicles: VehiclesDep,
     registry: RegistryDep,
-    limit: int = Query(default=100, ge=1, le=1000),
+    limit: int = Query(default=50, ge=1, le=MAX_PAGE),
     offset: int = Query(default=0, ge=0, le=10**9),
 ) -> list[VehicleOut]:
     return [_out(row, registry) for row in await vehicles.page(limit, offset)]
