@@ -1,0 +1,202 @@
+"""The MAVLink client over an in-memory transport: no sockets, no threads.
+
+As httpx's MockTransport answers requests with a function, `Peer` answers what the
+ground station sends with a function of the message: each test scripts the autopilot
+behaviour it needs (a boot that refuses uploads, refusals with several texts, ArduPilot's
+rebuilt items) and drives the real link, command and mission-protocol code against it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs.mavlink import client
+from gcs.mavlink.actions import FlightActions, is_not_ready
+from gcs.mavlink.commands import CommandPolicy, send_command
+from gcs.mavlink.connection import MavConnection
+from gcs.mavlink.errors import CommandFailedError, CommandTimeoutError, VehicleRebootedError
+from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
+from gcs.mavlink.mission_protocol import MissionClient
+from gcs.mavlink.transport import MemoryTransport
+
+Reply = Callable[[Any], list[Any]]
+SETTINGS = LinkSettings(connect_timeout_s=2.0, request_streams=False)
+
+
+class Peer:
+    """A scripted autopilot (system 1) on the far end of an in-memory pair."""
+
+    def __init__(self, transport: MemoryTransport, reply: Reply) -> None:
+        self.transport, self.reply = transport, reply
+        self.codec = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+        self.parser = mavlink2.MAVLink(None)
+        self.heard: list[Any] = []
+        self.status = mavlink2.MAV_STATE_STANDBY
+        transport.set_receiver(self._received)
+
+    def _received(self, data: bytes, _peer: object) -> None:
+        for msg in self.parser.parse_buffer(data) or ():
+            self.heard.append(msg)
+            for answer in self.reply(msg):
+                self.send(answer)
+
+    def send(self, msg: Any) -> None:
+        self.transport.send(msg.pack(self.codec))
+
+    def heartbeat(self) -> None:
+        self.send(
+            self.codec.heartbeat_encode(
+                mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0x51, 0,
+                self.status,
+            )
+        )  # fmt: skip
+
+    def sent(self, kind: str) -> list[Any]:
+        return [m for m in self.heard if m.get_type() == kind]
+
+
+async def linked(reply: Reply) -> tuple[VehicleLink, Peer]:
+    ours, theirs = MemoryTransport.pair()
+    peer = Peer(theirs, reply)
+    connection = MavConnection(ours, heartbeat=False)
+    attaching = asyncio.ensure_future(client.attach(connection, settings=SETTINGS, owns=True))
+    peer.send(peer.codec.heartbeat_encode(mavlink2.MAV_TYPE_GCS, 8, 0, 0, 4))  # not it
+    peer.heartbeat()
+    return await attaching, peer
+
+
+def silent(msg: Any) -> list[Any]:
+    return []
+
+
+async def test_the_link_finds_the_autopilot_not_another_ground_station() -> None:
+    link, _ = await linked(silent)
+    try:
+        assert (link.sysid, link.autopilot) == (1, Autopilot.ARDUPILOT)
+    finally:
+        await link.close()
+
+
+async def test_a_refusal_carries_every_text_of_its_attempt() -> None:
+    """ArduCopter explains one refused arming with several STATUSTEXTs after its ACK."""
+    link, peer = await linked(silent)
+
+    def refuse(msg: Any) -> list[Any]:
+        if msg.get_type() != "COMMAND_LONG":
+            return []
+        texts = ["Arm: Accels inconsistent", "Arm: EKF attitude is bad"]
+        ack = peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_FAILED)
+        return [ack, *(peer.codec.statustext_encode(3, t.encode()) for t in texts)]
+
+    peer.reply = refuse
+    try:
+        with pytest.raises(CommandFailedError) as caught:
+            await FlightActions(link).arm()
+        assert caught.value.statustext == "Arm: Accels inconsistent; Arm: EKF attitude is bad"
+        assert is_not_ready(caught.value)
+    finally:
+        await link.close()
+
+
+async def test_an_unanswered_command_is_resent_with_its_confirmation_counted() -> None:
+    link, peer = await linked(silent)
+    policy = CommandPolicy(timeout_s=0.05, retries=2)
+    try:
+        with pytest.raises(CommandTimeoutError, match="not acknowledged after 3 attempts"):
+            await send_command(link, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 1, policy=policy)
+        assert [m.confirmation for m in peer.sent("COMMAND_LONG")] == [0, 1, 2]
+    finally:
+        await link.close()
+
+
+class StoringAutopilot:
+    """ArduPilot's side of the mission protocol, booting first: NO_SPACE until booted,
+    items stored and given back as ArduPilot rebuilds them (frame 3, DO items frame 0,
+    NaN as 0)."""
+
+    def __init__(self) -> None:
+        self.peer: Peer | None = None
+        self.count = 0
+        self.items: dict[int, Any] = {}
+
+    def __call__(self, msg: Any) -> list[Any]:
+        assert self.peer is not None
+        codec, kind = self.peer.codec, msg.get_type()
+        if kind == "MISSION_COUNT":
+            if self.peer.status == mavlink2.MAV_STATE_BOOT:
+                return [codec.mission_ack_encode(255, 190, mavlink2.MAV_MISSION_NO_SPACE, 0)]
+            self.count = msg.count
+            return [codec.mission_request_encode(255, 190, 0, 0)]
+        if kind == "MISSION_ITEM_INT":
+            self.items[msg.seq] = msg
+            if msg.seq + 1 < self.count:
+                return [codec.mission_request_encode(255, 190, msg.seq + 1, 0)]
+            return [codec.mission_ack_encode(255, 190, mavlink2.MAV_MISSION_ACCEPTED, 0)]
+        if kind == "MISSION_REQUEST_LIST":
+            return [codec.mission_count_encode(255, 190, self.count, 0)]
+        if kind == "MISSION_REQUEST_INT":
+            return [self._stored(msg.seq)]
+        return []
+
+    def _stored(self, seq: int) -> Any:
+        assert self.peer is not None
+        item = self.items[seq]
+        positioned = item.command != mavlink2.MAV_CMD_DO_CHANGE_SPEED
+        frame = (3 if item.frame == 6 else item.frame) if positioned else 0
+        params = [0.0 if math.isnan(p) else p for p in (item.param1, item.param2, 0.0, 0.0)]
+        if item.command == mavlink2.MAV_CMD_NAV_WAYPOINT:
+            params[1] = 0.0  # Copter drops the acceptance radius
+        x, y = (item.x, item.y) if positioned else (0, 0)
+        return self.peer.codec.mission_item_int_encode(
+            255, 190, seq, frame, item.command, 0, 1, *params, x, y, item.z, 0
+        )
+
+
+async def test_an_upload_waits_for_the_boot_and_accepts_what_arducopter_rebuilds() -> None:
+    autopilot = StoringAutopilot()
+    link, peer = await linked(autopilot)
+    autopilot.peer = peer
+    peer.status = mavlink2.MAV_STATE_BOOT
+    peer.heartbeat()
+    lat, lon = -353632620, 1491652370
+    mission = Mission(
+        (
+            MissionItem(Command.NAV_WAYPOINT, Frame.GLOBAL, x=lat, y=lon, z=584.0),
+            MissionItem(Command.NAV_TAKEOFF, params=(0, 0, 0, math.nan), x=lat, y=lon, z=20.0),
+            MissionItem(Command.DO_CHANGE_SPEED, Frame.MISSION, params=(1, 1.0, 0, 0)),
+            MissionItem(Command.NAV_WAYPOINT, params=(2, 0.5, 0, math.nan), x=lat + 9, y=lon),
+        ),
+        Autopilot.ARDUPILOT,
+    )
+    try:
+        await asyncio.sleep(0)  # the BOOT heartbeat arrives
+        assert link.state.booting
+        upload = asyncio.ensure_future(MissionClient(link).upload(mission))
+        await asyncio.sleep(0.05)
+        assert not peer.sent("MISSION_COUNT")  # it waits for the boot to end
+        peer.status = mavlink2.MAV_STATE_STANDBY
+        peer.heartbeat()
+        assert (await upload).verified
+    finally:
+        await link.close()
+
+
+async def test_a_reboot_ends_what_was_waiting_on_the_vehicle() -> None:
+    link, peer = await linked(silent)
+    try:
+        waiting = asyncio.ensure_future(link.wait_for("COMMAND_ACK", timeout=5.0))
+        await asyncio.sleep(0)
+        peer.status = mavlink2.MAV_STATE_BOOT  # booting again: it restarted
+        peer.heartbeat()
+        with pytest.raises(VehicleRebootedError):
+            await waiting
+        assert link.state.reboots == 1
+    finally:
+        await link.close()
