@@ -15,11 +15,11 @@ COPY sitl_mock ./sitl_mock
 RUN pip install --no-cache-dir .
 
 USER 10002
-EXPOSE 5770-5860
+EXPOSE 5760-5850
 
-# Vehicle 1 listens on base port + 10 = 5770.
+# Vehicle i serves TCP 5760 + 10 (i - 1), as ArduPilot SITL: vehicle 1 on 5760.
 HEALTHCHECK --interval=10s --timeout=3s --start-period=10s --retries=3 \
-    CMD ["python", "-c", "import socket; socket.create_connection(('127.0.0.1', 5770), 2).close()"]
+    CMD ["python", "-c", "import socket; socket.create_connection(('127.0.0.1', 5760), 2).close()"]
 
 ENTRYPOINT ["python", "-m", "sitl_mock", "--transport", "tcp", "--base-port", "5760", "--bind", "0.0.0.0"]
 CMD ["--vehicles", "3", "--speedup", "1"]

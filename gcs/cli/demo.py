@@ -34,7 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--speedup", type=float, default=5.0, help="simulated time factor")
     parser.add_argument(
-        "--base-port", type=int, default=14550, help="vehicle i listens on UDP base + 10 i"
+        "--base-port",
+        type=int,
+        default=5760,
+        help="vehicle i serves TCP base + 10 (i - 1), as ArduPilot SITL (default 5760)",
     )
 
 
@@ -59,7 +62,8 @@ def vehicles_at_starts(scenario: Scenario, speedup: float, base_port: int) -> Si
     for sysid, uav in enumerate(scenario.uavs, start=1):
         lat, lon = frame.to_geodetic(*uav.start)
         home = (float(lat), float(lon), frame.alt0)
-        configs.append(VehicleConfig(sysid=sysid, port=base_port + 10 * sysid, home=home))
+        port = base_port + 10 * (sysid - 1)
+        configs.append(VehicleConfig(sysid=sysid, port=port, home=home, transport="tcp"))
     return Simulator(configs, speedup=speedup, seed=1)
 
 
@@ -69,7 +73,7 @@ def register(settings: Settings, simulator: Simulator) -> list[str]:
 
 
 async def _register(settings: Settings, simulator: Simulator) -> list[str]:
-    settings.data_dir.mkdir(parents=True, exist_ok=True, mode=0o700)
+    settings.data_dir.mkdir(parents=True, exist_ok=True, mode=0o700)  # the service tightens it
     db = Database(settings.resolved_database_url)
     vehicles = VehicleRepository(db)
     lines = []

@@ -526,7 +526,7 @@ def test_parameters_list_read_and_set(make_sim, autopilot, speed_param, default)
     reply = gcs.recv("PARAM_VALUE", where=lambda m: m.param_id == speed_param)
     assert reply.param_value == default / 2
     assert sim.vehicle(1).flight.limits().cruise_speed == pytest.approx(
-        default / 2 / (100 if autopilot == "ardupilot" else 1)
+        default / 2  # both in m/s (ArduCopter 4.8: WP_SPD)
     )
 
 
