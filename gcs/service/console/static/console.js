@@ -452,7 +452,7 @@ function updateVehicleRow(vehicleId, v) {
   if (!entry) {
     const cells = {};
     const row = el("tr", { "data-vehicle": vehicleId });
-    for (const key of ["uav", "name", "link", "mode", "alt", "hdg", "item", "lag", "flags"]) {
+    for (const key of ["uav", "link", "mode", "alt", "hdg", "item", "lag", "flags"]) {
       cells[key] = el("td", { class: `col-${key}` });
       row.append(cells[key]);
     }
@@ -467,19 +467,25 @@ function updateVehicleRow(vehicleId, v) {
   }
   const c = entry.cells;
   const p = v.progress ?? {};
-  if (v.uav_id) { c.uav.textContent = v.uav_id; c.uav.style.setProperty("--c", colourOf(order(v.uav_id))); c.uav.className = "col-uav swatched"; }
-  if (v.name) c.name.textContent = v.name;
-  else if (!c.name.textContent) c.name.textContent = vehicleId;
-  const heard = v.seconds_since_heard == null ? "" : ` (${fmt(v.seconds_since_heard, 1)} s)`;
-  c.link.textContent = v.online ? `up${heard}` : "DOWN";
+  // The UAV it flies as, else the vehicle's name; the full name and id on hover.
+  if (v.name) entry.name = v.name;
+  if (v.uav_id) {
+    entry.uav = v.uav_id;
+    c.uav.style.setProperty("--c", colourOf(order(v.uav_id)));
+    c.uav.className = "col-uav swatched";
+  }
+  c.uav.textContent = entry.uav ?? entry.name ?? vehicleId;
+  c.uav.title = `${entry.name ?? ""} (vehicle ${vehicleId})`;
+  c.link.textContent = v.online ? "up" : "DOWN";
+  c.link.title = v.seconds_since_heard == null ? "" : `last heard ${fmt(v.seconds_since_heard, 1)} s ago`;
   c.link.className = v.online ? "col-link ok" : "col-link bad";
-  c.mode.textContent = `${v.mode ?? "?"}${v.armed ? " armed" : ""}`;
+  c.mode.textContent = v.mode ?? "?";
   c.alt.textContent = v.relative_alt_m == null ? "–" : `${fmt(v.relative_alt_m, 1)} m`;
   c.hdg.textContent = v.heading_deg == null ? "–" : `${fmt(v.heading_deg, 0)}°`;
   c.item.textContent = v.mission_seq == null ? "–" : `${v.mission_seq}/${v.mission_total ?? "?"}`;
   c.lag.textContent = p.lag_s == null ? "–" : `${fmt(p.lag_s, 1)} s`;
-  const flags = ["paused", "held", "withdrawn", "holding", "landing", "finished"].filter((k) => p[k]);
-  c.flags.textContent = flags.join(" ");
+  const flags = [v.armed ? "armed" : "", ...["paused", "held", "withdrawn", "holding", "landing", "finished"].filter((k) => p[k])];
+  c.flags.textContent = flags.filter(Boolean).join(" ");
   entry.row.dataset.online = String(Boolean(v.online));
 }
 
@@ -609,6 +615,11 @@ async function bindAndUpload() {
     }
     say(`flight ${S.flight.id}: uploading…`);
     const { data } = await post(`/flights/${S.flight.id}/upload`);
+    // The live stream passes events on only to listeners that joined after the upload
+    // made the flight active: join again now (see docs/console.md, "API notes").
+    const stale = S.flightWs;
+    S.flightWs = null;
+    stale?.close();
     setFlight(data.flight);
     renderAnswers($("upload-results"), data.vehicles);
     say(`flight ${S.flight.id}: ${data.flight.state}`, data.flight.state === "uploaded" ? "info" : "error");
@@ -682,7 +693,7 @@ function showReplan(answer) {
   field.showTime(S.t);
   const list = (xs) => (xs?.length ? xs.join(", ") : "none");
   $("replan-result").replaceChildren(
-    el("p", {}, el("strong", { text: `Object at ${answer.cell.join(", ")}` }), ` (plan time ${fmt(answer.plan_time_s, 1)} s)`),
+    el("p", {}, el("strong", { text: `Object at ${answer.cell.join(", ")}` }), ` (flight clock ${fmt(answer.plan_time_s, 1)} s)`),
     el("p", { "data-field": "touched", text: `touched: ${list(answer.touched)}` }),
     el("p", { "data-field": "changed", text: `replanned: ${list(answer.changed)}` }),
     el("p", { "data-field": "unresolved", class: answer.unresolved?.length ? "bad" : "", text: `unresolved: ${list(answer.unresolved)}` }),
