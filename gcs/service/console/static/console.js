@@ -102,7 +102,8 @@ function showErrors(container, detail) {
       if (target && !target.classList.contains("field-errors")) {
         target.setAttribute("aria-invalid", "true");
         target.setAttribute("aria-describedby", id);
-        target.after(note);
+        if (target.matches("input, select, textarea")) target.after(note);
+        else target.append(note);
       } else {
         container.querySelector(".field-errors")?.append(note);
       }
@@ -319,7 +320,7 @@ function showPlan(planOut) {
   S.replanned = new Set();
   field.clearReported();
   const plan = planOut.plan;
-  field.setPlan(plan, order, S.scenario?.grid.cell_size_m ?? 10, radii());
+  drawPlan();
   S.tMax = Math.max(...plan.uavs.map((u) => u.trajectory[u.trajectory.length - 1][0]));
   $("time-slider").max = String(S.tMax);
   setTime(0);
@@ -328,6 +329,15 @@ function showPlan(planOut) {
   renderBindings();
   say(plan.feasible ? `plan ${planOut.id}: safe` : `plan ${planOut.id}: NOT safe (${plan.metrics.conflicts} conflicts)`,
     plan.feasible ? "info" : "error");
+}
+
+function drawPlan() {
+  if (!S.plan) return;
+  const { plan } = S.plan;
+  field.setPlan(plan, order, S.scenario?.grid.cell_size_m ?? 10, radii(), S.replanned);
+  if (S.scenario && !Array.isArray(S.scenario.non_uav_objects)) {
+    field.planObjects(plan.non_uav_objects); // random ones: the plan says where they fell
+  }
 }
 
 function renderMetrics(planOut) {
@@ -689,7 +699,7 @@ function showReplan(answer) {
   S.lastReplan = key;
   field.reportedObject(answer.cell);
   for (const uav of answer.changed ?? []) S.replanned.add(uav);
-  if (S.plan) field.setPlan(S.plan.plan, order, S.scenario?.grid.cell_size_m ?? 10, radii(), S.replanned);
+  drawPlan();
   field.showTime(S.t);
   const list = (xs) => (xs?.length ? xs.join(", ") : "none");
   $("replan-result").replaceChildren(
@@ -746,8 +756,12 @@ async function lookBack() {
         const points = mine.map((e) => bySeq.get(e.data.seq)).filter((it) => it && it.params[4] && it.params[5])
           .map((it) => [it.params[4], it.params[5]]);
         field.reachedPoints(uav, order(uav), points);
-        const late = Math.max(...mine.map((e) => e.data.plan_time_s - e.data.scheduled_s));
-        lines.push(`${uav}: ${mine.length} waypoints, at most ${fmt(late, 1)} s late`);
+        // The last item is the landing: its descent is not in the plan's schedule.
+        const lateness = (e) => e.data.plan_time_s - e.data.scheduled_s;
+        const last = mine.reduce((a, e) => (e.data.seq > a.data.seq ? e : a));
+        const way = mine.filter((e) => e !== last);
+        const late = way.length ? `at most ${fmt(Math.max(...way.map(lateness)), 1)} s late on the way` : "";
+        lines.push(`${uav}: ${mine.length} waypoints reached, ${late}; last one ${fmt(lateness(last), 1)} s after its time`);
       } catch (error) { lines.push(`${uav}: ${error.message}`); }
     }
     $("lookback-result").replaceChildren(...lines.map((t) => el("p", { text: t })));

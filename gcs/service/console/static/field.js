@@ -154,6 +154,11 @@ export class FieldMap {
 
   clearReported() { this.layers.objects.clearLayers(); }
 
+  /** Objects the planner placed (a scenario's `{"random": K}`), drawn with the plan. */
+  planObjects(cells) {
+    for (const [x, y] of cells) this.object(this.layers.plan, x, y, "object");
+  }
+
   /** Each UAV's path in its colour; the `replanned` ones (live replan: the API does not
    * give their new paths) faded and marked, their vehicles' trails showing what they fly. */
   setPlan(plan, order, cellSize, radii, replanned = new Set()) {
