@@ -464,13 +464,15 @@ function updateVehicleRow(vehicleId, v) {
     const row = el("tr", { "data-vehicle": vehicleId });
     for (const key of ["uav", "link", "mode", "alt", "hdg", "item", "lag", "flags"]) {
       cells[key] = el("td", { class: `col-${key}` });
-      row.append(cells[key]);
     }
     const command = (cmd, label) => el("button", {
-      type: "button", class: cmd === "continue" ? "" : "danger small", text: label,
+      type: "button", class: cmd === "continue" ? "small" : "danger small", text: label,
+      "aria-label": `${label} vehicle ${vehicleId}`,
       "data-command": cmd, onclick: () => commandVehicle(vehicleId, cmd),
     });
-    row.append(el("td", { class: "commands" }, command("hold", "Hold"), command("land", "Land"), command("rtl", "RTL"), command("continue", "Go on")));
+    // The commands right after the name, so that they are never scrolled out of view.
+    const commands = el("td", { class: "commands" }, command("hold", "Hold"), command("land", "Land"), command("rtl", "RTL"), command("continue", "Go on"));
+    row.append(cells.uav, commands, ...["link", "mode", "alt", "hdg", "item", "lag", "flags"].map((k) => cells[k]));
     $("vehicle-table").querySelector("tbody").append(row);
     entry = { row, cells };
     rows.set(vehicleId, entry);
