@@ -46,6 +46,12 @@ class Settings(BaseSettings):
         description="UDP port where vehicles that announce themselves are heard (as "
         "QGroundControl listens); empty: no discovery",
     )
+    console_tile_url: str = Field(
+        default="",
+        max_length=500,
+        description="map tiles under the console's grid, as a {z}/{x}/{y} URL template; "
+        "empty: a plain offline grid",
+    )
     listen_beyond_loopback: bool = Field(
         default=False,
         description="allow listening (udpin:) on addresses other than loopback, for the "

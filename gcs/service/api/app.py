@@ -28,6 +28,7 @@ from gcs.service.api.routers import (
     scenarios,
     vehicles,
 )
+from gcs.service.console import mount_console
 from gcs.service.flights.service import BadBindings, BadObject
 from gcs.service.planning_pool import PlanningPool
 from gcs.service.settings import Settings
@@ -101,6 +102,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     for module in routers:
         app.include_router(module.router)
     _add_error_handlers(app)
+    mount_console(app, settings)
     return app
 
 

@@ -1,0 +1,419 @@
+"""The operator console in a real browser (Debian's Chromium under Playwright) against a
+real `mvo-gcs serve` with mock vehicles at case VI's starts: load the case, plan, see the
+three paths and their animation, upload, start, watch the vehicles move on the map where
+the API says they are, pause (they stop), continue, report an object (a replan), abort.
+
+Every wait is for a condition with a generous bound (a loaded machine is slow, never
+wrong); nothing sleeps to let things settle. A browser console error fails the test.
+Screenshots go to MVO_GCS_SCREENSHOTS (docs/console/ to refresh the committed ones), else
+to the test's temporary directory.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+import pytest
+
+from gcs.mission.geodesy import GridFrame
+from planner.cases import load_case
+from planner.trajectory import Trajectory
+from sitl_mock import Simulator
+from tests.e2e.flying import fleet_at_starts, ground_speed, register, wait_for
+from tests.service_process import TOKEN, ServiceProcess
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(
+        not Path(CHROMIUM).exists(),
+        reason="Chromium is not installed (apt-get install chromium; .ci/run does it)",
+    ),
+]
+sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed")
+
+# Playwright adds --headless and a fresh --user-data-dir of its own (it refuses ours).
+CHROMIUM_FLAGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+SPEEDUP = 5.0  # slow enough that the page can pause and report mid-flight
+VIEWPORT = {"width": 1280, "height": 800}
+UAVS = ("uav1", "uav2", "uav3")
+
+
+@dataclass
+class Browser:
+    page: Any
+    service_url: str
+    errors: list[str] = field(default_factory=list)
+    foreign: list[str] = field(default_factory=list)
+
+    def js(self, expression: str, arg: Any = None) -> Any:
+        return self.page.evaluate(expression, arg)
+
+    def wait_js(self, expression: str, timeout_s: float, arg: Any = None) -> Any:
+        return self.page.wait_for_function(expression, arg=arg, timeout=timeout_s * 1000)
+
+    def shot(self, directory: Path, name: str) -> Path:
+        path = directory / name
+        self.page.screenshot(path=str(path))
+        return path
+
+
+@pytest.fixture
+def shots(tmp_path: Path) -> Path:
+    directory = Path(os.environ.get("MVO_GCS_SCREENSHOTS") or tmp_path / "shots")
+    directory.mkdir(parents=True, exist_ok=True)
+    return directory
+
+
+@pytest.fixture
+def vehicles() -> Iterator[Simulator]:
+    sim = fleet_at_starts(load_case("case-6"), speedup=SPEEDUP)
+    with sim.running():
+        yield sim
+
+
+@pytest.fixture
+def service(tmp_path: Path) -> Iterator[ServiceProcess]:
+    proc = ServiceProcess(tmp_path / "data")
+    proc.start()
+    yield proc
+    proc.stop()
+
+
+@pytest.fixture
+def browser(service: ServiceProcess) -> Iterator[Browser]:
+    with sync_api.sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(
+            executable_path=CHROMIUM,
+            args=CHROMIUM_FLAGS,
+        )
+        # Playwright's waits evaluate strings, which the console's CSP forbids the page.
+        context = chromium.new_context(viewport=VIEWPORT, bypass_csp=True)
+        page = context.new_page()
+        page.set_default_timeout(60_000)
+        b = Browser(page, service.url)
+
+        def console(message: Any) -> None:
+            if message.type == "error":
+                b.errors.append(message.text)
+
+        page.on("console", console)
+        page.on("pageerror", lambda e: b.errors.append(f"uncaught: {e}"))
+        ws_url = service.url.replace("http://", "ws://")
+
+        def outside(request: Any) -> None:
+            if not request.url.startswith((service.url, ws_url, "data:")):
+                b.foreign.append(request.url)
+
+        page.on("request", outside)
+        try:
+            yield b
+        finally:
+            context.close()
+            chromium.close()
+
+
+# --- where things are on the screen ----------------------------------------------------
+
+
+SCREEN = """() => {
+  const centre = (el) => { const r = el.getBoundingClientRect();
+    return [r.left + r.width / 2, r.top + r.height / 2]; };
+  const cells = [...document.querySelectorAll('.cell-start, .cell-goal')].map(
+    (el) => [el.dataset.cell.split(',').map(Number), centre(el)]);
+  const vehicles = Object.fromEntries([...document.querySelectorAll('.vehicle')].map(
+    (el) => [el.dataset.uav, centre(el)]));
+  return {cells, vehicles};
+}"""
+
+
+class ScreenFrame:
+    """Grid cells to screen pixels, fitted to where the page drew the starts and goals."""
+
+    def __init__(self, cells: list[list[Any]]) -> None:
+        grid = np.array([[x, y, 1.0] for (x, y), _ in cells])
+        pixels = np.array([p for _, p in cells])
+        self.matrix, *_ = np.linalg.lstsq(grid, pixels, rcond=None)
+        fitted = grid @ self.matrix
+        assert np.abs(fitted - pixels).max() < 1.5, "the starts and goals are not on one grid"
+        self.cell_px = float(np.linalg.norm(self.matrix[0]))
+
+    def pixel(self, x: float, y: float) -> np.ndarray:
+        return np.array([x, y, 1.0]) @ self.matrix
+
+    def cells(self, px: list[float]) -> np.ndarray:
+        """Back from pixels to cells (the fit is affine and invertible)."""
+        a = self.matrix[:2].T
+        return np.linalg.solve(a, np.array(px) - self.matrix[2])
+
+
+def api_cells(client: httpx.Client, flight_id: str, frame: GridFrame) -> dict[str, np.ndarray]:
+    """Where the API says every vehicle is, in cells."""
+    live = client.get(f"/flights/{flight_id}/live-state").json()
+    out = {}
+    for v in live["vehicles"]:
+        x, y = frame.to_cells(v["lat"], v["lon"])
+        out[v["uav_id"]] = np.array([float(x), float(y)])
+    return out
+
+
+def screen_cells(b: Browser, screen: ScreenFrame) -> dict[str, np.ndarray]:
+    drawn = b.js(SCREEN)["vehicles"]
+    return {uav: screen.cells(px) for uav, px in drawn.items()}
+
+
+def worst_gap(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
+    assert set(a) == set(b) == set(UAVS), (a, b)
+    return max(float(np.linalg.norm(a[k] - b[k])) for k in UAVS)
+
+
+def state_shown(b: Browser) -> str:
+    return str(b.page.inner_text("#flight-state"))
+
+
+def wait_state(b: Browser, states: tuple[str, ...], timeout_s: float) -> str:
+    b.wait_js(
+        "(states) => states.includes(document.querySelector('#flight-state').textContent)",
+        timeout_s,
+        list(states),
+    )
+    return state_shown(b)
+
+
+def until(condition: Callable[[], Any], timeout: float, what: str) -> Any:
+    return wait_for(condition, timeout, what, every=0.1)
+
+
+# --- the test ----------------------------------------------------------------------------
+
+
+def test_an_operator_flies_case_vi_from_the_console(
+    service: ServiceProcess, vehicles: Simulator, browser: Browser, shots: Path
+) -> None:
+    b, page = browser, browser.page
+    scenario = load_case("case-6")
+    grid = GridFrame.of(scenario)
+    with service.client() as client:
+        for sysid in vehicles.sysids:  # as `mvo-gcs demo` does before the operator arrives
+            register(client, vehicles.connection_string(sysid))
+
+        page.goto(service.url + "/")
+        b.wait_js("() => document.body.dataset.ready === 'true'", 30)
+        assert page.title() == "mvo-gcs console"
+
+        # Load case VI: three starts and three goals on the grid.
+        page.select_option("#case-select", "case-6")
+        page.click("#load-case-btn")
+        b.wait_js("() => document.querySelectorAll('.cell-start').length === 3", 10)
+        screen = ScreenFrame(b.js(SCREEN)["cells"])
+        assert screen.cell_px > 20, "cells too small to read at 1280x800"
+
+        # Plan (the token is asked once, here), watch the job, see three paths.
+        page.fill("#pl-budget", "3")
+        page.click("#plan-btn")
+        page.wait_for_selector("#token-dialog[open]")
+        page.fill("#token-input", TOKEN)
+        page.click("#token-ok")
+        b.wait_js("() => document.querySelectorAll('.plan-path').length === 3", 90)
+        assert "safe" in page.inner_text("#status")
+        metrics = page.inner_text("#metrics")
+        assert "min separation" in metrics and "first safe after" in metrics
+        plan_id = page.inner_text("#plan-id").strip()
+        plan = client.get(f"/plans/{plan_id}").json()["plan"]
+        assert plan["feasible"]
+
+        # Play: the discs move along the paths and the time runs to the plan's end.
+        discs_before = b.js(
+            "() => [...document.querySelectorAll('.anim-disc')].map(d => d.getAttribute('d'))"
+        )
+        assert len(discs_before) == 3
+        page.click("#play-btn")
+        b.wait_js("() => Number(document.querySelector('#time-slider').value) > 1", 30)
+        discs_moving = b.js(
+            "() => [...document.querySelectorAll('.anim-disc')].map(d => d.getAttribute('d'))"
+        )
+        assert discs_moving != discs_before
+        b.shot(shots, "console-plan.png")
+        b.wait_js("() => document.querySelector('#play-btn').textContent === 'Play'", 60)
+        end = float(page.input_value("#time-slider"))
+        assert end == pytest.approx(max(u["trajectory"][-1][0] for u in plan["uavs"]), abs=0.06)
+
+        # Bind (the page's default: the vehicles in order) and upload, once all are online.
+        b.wait_js(
+            "() => document.querySelectorAll('#vehicle-table tr[data-online=true]').length === 3",
+            60,
+        )
+        page.click("#upload-btn")
+        wait_state(b, ("uploaded", "upload_failed"), 120)
+        assert state_shown(b) == "uploaded", page.inner_text("#upload-results")
+        assert page.locator("#upload-results li.ok").count() == 3
+        flight_id = page.inner_text("#flight-id").strip()
+
+        # Start: vehicles appear, then move on the map.
+        page.click("#start-btn")
+        b.wait_js("() => document.querySelectorAll('.vehicle').length === 3", 60)
+        at_start = screen_cells(b, screen)
+        for uav, where in at_start.items():
+            start = next(u.start for u in scenario.uavs if u.id == uav)
+            assert np.linalg.norm(where - np.array(start)) < 0.3, (uav, where, start)
+        wait_state(b, ("flying",), 120)
+        until(lambda: worst_gap(screen_cells(b, screen), at_start) > 0.5, 60, "vehicles moving")
+        # While flying the screen trails the API by a frame or two, no more.
+        gap = worst_gap(screen_cells(b, screen), api_cells(client, flight_id, grid))
+        assert gap < 1.0, gap
+
+        # Pause: every vehicle stops, and where the page draws it is where the API says.
+        page.click("#pause-btn")
+        wait_state(b, ("paused",), 60)
+        until(lambda: max(ground_speed(vehicles, k) for k in vehicles.sysids) < 0.05, 60, "stop")
+        until(
+            lambda: worst_gap(screen_cells(b, screen), api_cells(client, flight_id, grid)) < 0.1,
+            30,
+            "the drawn positions to match the API's",
+        )
+        stopped = screen_cells(b, screen)
+        stopped_at = vehicles.sim_time
+        until(lambda: vehicles.sim_time > stopped_at + 10, 30, "10 simulated seconds")
+        assert worst_gap(screen_cells(b, screen), stopped) < 0.1
+        assert state_shown(b) == "paused"
+        b.shot(shots, "console-paused.png")
+
+        # Continue: they move again.
+        page.click("#continue-btn")
+        wait_state(b, ("flying",), 60)
+        until(lambda: worst_gap(screen_cells(b, screen), stopped) > 0.3, 60, "moving again")
+
+        # Report a bird a few seconds ahead of uav3 on its path: the page shows the replan.
+        live = client.get(f"/flights/{flight_id}/live-state").json()
+        clock = max(v["progress"]["clock_s"] for v in live["vehicles"]) / live["pace_factor"]
+        uav3 = next(u for u in plan["uavs"] if u["id"] == "uav3")
+        ahead = Trajectory(np.array(uav3["trajectory"])).at([clock + 2.5])[0]
+        cell = [round(float(ahead[0])), round(float(ahead[1]))]
+        page.click("#report-btn")
+        x, y = screen.pixel(*cell)
+        page.mouse.click(float(x), float(y))
+        page.wait_for_selector("#replan-result [data-field=changed]", timeout=60_000)
+        touched = page.inner_text("#replan-result [data-field=touched]")
+        changed = page.inner_text("#replan-result [data-field=changed]")
+        assert "uav3" in touched, (cell, touched)
+        assert "uav3" in changed, (cell, changed)
+        assert page.locator(".plan-path.replanned").count() >= 1
+        assert page.locator(f".object.reported[data-cell='{cell[0]},{cell[1]}']").count() == 1
+        b.wait_js(
+            "() => [...document.querySelectorAll('#events li')]"
+            ".some(li => li.dataset.kind === 'ObjectReported')",
+            30,
+        )
+        b.shot(shots, "console-flight.png")
+
+        # Abort: every vehicle lands where it is.
+        page.click("#abort-land-btn")
+        wait_state(b, ("aborting", "aborted"), 30)
+        assert wait_state(b, ("aborted",), 180) == "aborted"
+        assert client.get(f"/flights/{flight_id}").json()["state"] == "aborted"
+
+        # Look back at it from the stored events.
+        page.click("#lookback-section summary")
+        page.click("#refresh-flights-btn")
+        b.wait_js(
+            "(id) => [...document.querySelectorAll('#flight-select option')]"
+            ".some(o => o.value === id)",
+            30,
+            flight_id,
+        )
+        page.select_option("#flight-select", flight_id)
+        page.click("#show-flight-btn")
+        b.wait_js("() => document.querySelector('#lookback-result').textContent.length > 0", 30)
+        assert flight_id in page.inner_text("#lookback-result")
+        b.shot(shots, "console-aborted.png")
+
+        timings = b.js("() => window.consoleTimings")
+        report = {
+            k: round(v / 1000, 3)
+            for k, v in timings.items()
+            if k != "startClicked" and isinstance(v, float | int)
+        }
+        (shots / "timings.json").write_text(json.dumps(report, indent=2) + "\n")
+        print(f"console timings after start (s): {report}")
+        assert timings["firstLiveAfterStart"] > 0
+
+    assert not b.errors, b.errors
+    assert not b.foreign, f"the page loaded from outside the service: {b.foreign}"
+    assert not service.problems(), service.problems()
+
+
+def test_api_docs_and_console_load_nothing_from_outside(
+    service: ServiceProcess, browser: Browser
+) -> None:
+    page = browser.page
+    page.goto(service.url + "/docs")
+    page.wait_for_selector(".swagger-ui .info .title", timeout=60_000)
+    assert "mvo-gcs" in page.inner_text(".swagger-ui .info .title")
+
+    page.goto(service.url + "/")
+    browser.wait_js("() => document.body.dataset.ready === 'true'", 30)
+    # The fleet's commands are reachable from the keyboard, first in the page's order.
+    focused = []
+    for _ in range(8):
+        page.keyboard.press("Tab")
+        focused.append(browser.js("() => document.activeElement.id"))
+    for button in ("pause-btn", "continue-btn", "abort-rtl-btn", "abort-land-btn"):
+        assert button in focused, focused
+    assert not browser.errors, browser.errors
+    assert not browser.foreign, browser.foreign
+
+
+def test_validation_errors_appear_next_to_the_fields_they_name(
+    service: ServiceProcess, browser: Browser
+) -> None:
+    page = browser.page
+    page.goto(service.url + "/")
+    browser.wait_js("() => document.body.dataset.ready === 'true'", 30)
+    page.select_option("#case-select", "case-6")
+    page.click("#load-case-btn")
+    browser.wait_js("() => document.querySelectorAll('.cell-start').length === 3", 10)
+
+    speed = "#uav-table [data-loc='uavs.0.speed']"
+    page.fill(speed, "-1")
+    page.press(speed, "Tab")
+    page.click("#save-scenario-btn")
+    page.wait_for_selector("#token-dialog[open]")
+    page.fill("#token-input", TOKEN)
+    page.click("#token-ok")
+    note = page.locator(f"{speed} + .field-error")
+    note.wait_for()
+    assert "greater than 0" in note.inner_text()
+    assert page.get_attribute(speed, "aria-invalid") == "true"
+
+    # The planner's own checks name their field in the message: uav2's start is now off
+    # the grid. The token is not asked again.
+    page.fill(speed, "1")
+    page.press(speed, "Tab")
+    page.fill("#sc-width", "5")
+    page.press("#sc-width", "Tab")
+    page.click("#save-scenario-btn")
+    start = page.locator("#uav-table [data-loc='uavs.1.start'] .field-error")
+    start.wait_for()
+    assert "outside the 5x9 grid" in start.inner_text()
+    assert page.locator(f"{speed} + .field-error").count() == 0
+    assert "non_uav_objects[1]" in page.inner_text("#scenario-errors")
+    assert not page.is_visible("#token-dialog")
+    # Chromium logs each refused request; the two 422 answers are the point here.
+    unexpected = [m for m in browser.errors if "status of 422" not in m]
+    assert not unexpected, unexpected
