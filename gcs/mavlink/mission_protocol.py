@@ -47,7 +47,7 @@ class TransferPolicy:
     step_timeout_s: float = 1.5
     item_timeout_s: float = 0.25
     retries: int = 5
-    whole_transfer_attempts: int = 2  # for non-definitive refusals (ERROR, CANCELLED)
+    whole_transfer_attempts: int = 3  # for non-definitive refusals (ERROR, CANCELLED)
 
     @property
     def stall_limit_s(self) -> float:

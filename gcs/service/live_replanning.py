@@ -25,6 +25,7 @@ from planner.scenario import Scenario
 @dataclass(frozen=True)
 class ReplanOutcome:
     result: LiveReplan
+    missions: dict[str, Mission]  # what was sent to each changed UAV's vehicle
     uploads: dict[str, VehicleOutcome[None]]
     plan: Plan  # the flight's plan with the new trajectories spliced in
 
@@ -68,7 +69,7 @@ async def replan_flight(
             acceptance_radius_m=turn_radius_m,
         )
     uploads = await fleet.replace_missions(missions, starts_at=result.now) if missions else {}
-    return ReplanOutcome(result, uploads, _spliced(plan, result, uploads))
+    return ReplanOutcome(result, missions, uploads, _spliced(plan, result, uploads))
 
 
 def _positions(fleet: Fleet, frame: GridFrame) -> dict[str, tuple[float, float]]:

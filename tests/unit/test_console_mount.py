@@ -15,7 +15,7 @@ from gcs.service.settings import Settings
 
 def client(tmp_path: Path, **settings: object) -> httpx.AsyncClient:
     """The app without its lifespan (no storage, no pool): only static routes are used."""
-    app = create_app(Settings(data_dir=tmp_path, **settings))  # type: ignore[arg-type]
+    app = create_app(Settings(data_dir=tmp_path, allowed_hosts=["test"], **settings))  # type: ignore[arg-type]
     return httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://test")
 
 

@@ -1,5 +1,5 @@
-"""What only lives while the service runs, for a flight uploaded in this run: its `Fleet`,
-the plan as flown, and the live listeners (WebSockets) its events fan out to."""
+"""What only lives while the service runs, for a flight uploaded in this run: its `Fleet`
+and the plan as flown."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from gcs.fleet.events import FleetEvent, Progress
+from gcs.fleet.events import FleetEvent
 from gcs.fleet.fleet import Fleet
 from gcs.mavlink.mission_item import Mission
 from planner.live_replan import NewObject
@@ -40,19 +40,10 @@ class ActiveFlight:
     options: dict[str, Any]
     pace_factor: float  # the flight's clock runs this much slower than the plan's
     objects: list[NewObject] = field(default_factory=list)  # reported during the flight
-    listeners: set[asyncio.Queue[dict[str, Any]]] = field(default_factory=set)
-    last_progress: Progress | None = None
     pump: asyncio.Task[None] | None = None  # fleet events to storage and listeners
 
     def uav_of(self, vehicle_id: str) -> str | None:
         return next((uav for uav, vid in self.vehicles.items() if vid == vehicle_id), None)
-
-    def tell(self, message: dict[str, Any]) -> None:
-        """Give a message to every live listener; a slow one loses its oldest messages."""
-        for queue in list(self.listeners):
-            if queue.full():
-                queue.get_nowait()
-            queue.put_nowait(message)
 
 
 def event_json(event: FleetEvent) -> dict[str, Any]:

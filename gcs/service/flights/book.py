@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import Iterable
+from typing import Any
 
-from gcs.service.flights.active import ActiveFlight
+from gcs.service.flights.active import LISTENER_QUEUE, ActiveFlight
 from gcs.service.flights.event_writer import EventWriter
 from gcs.service.flights.slot import FlightSlot
 from gcs.service.states import FlightState, StateConflict
@@ -27,6 +28,7 @@ class FlightBook:
         self._slots: dict[str, FlightSlot] = {}
         self._states: dict[str, FlightState] = {}
         self._bindings: dict[str, dict[str, str]] = {}
+        self._listeners: dict[str, set[asyncio.Queue[dict[str, Any]]]] = {}
         self.claims = asyncio.Lock()  # ownership checks and the claims they allow
 
     def slot(self, flight_id: str) -> FlightSlot:
@@ -56,10 +58,28 @@ class FlightBook:
         self._states[flight_id] = new
         message = {"type": "event", "kind": "FlightState", "state": new.value, "note": note}
         self.events.record(flight_id, "FlightState", message)
-        active = self.active.get(flight_id)
-        if active is not None:
-            active.tell(message)
+        self.tell(flight_id, message)
         return row
+
+    def listen(self, flight_id: str) -> asyncio.Queue[dict[str, Any]]:
+        """Every live message about the flight from now on, whatever state it is in."""
+        queue: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=LISTENER_QUEUE)
+        self._listeners.setdefault(flight_id, set()).add(queue)
+        return queue
+
+    def unlisten(self, flight_id: str, queue: asyncio.Queue[dict[str, Any]]) -> None:
+        listeners = self._listeners.get(flight_id)
+        if listeners is not None:
+            listeners.discard(queue)
+            if not listeners:
+                del self._listeners[flight_id]
+
+    def tell(self, flight_id: str, message: dict[str, Any]) -> None:
+        """Give a message to the flight's listeners; a slow one loses its oldest messages."""
+        for queue in list(self._listeners.get(flight_id, ())):
+            if queue.full():
+                queue.get_nowait()
+            queue.put_nowait(message)
 
     async def owners(self, vehicle_ids: Iterable[str], excluding: str) -> dict[str, FlightRow]:
         """vehicle id -> the other open flight that owns it."""

@@ -39,6 +39,7 @@ from planner.scenario import Scenario
 
 log = logging.getLogger("mvo_gcs.flights")
 F = FlightState
+TRACK_PERIOD_S = 1.0  # wall seconds between stored positions (the flown tracks)
 
 
 class BadObject(ValueError):
@@ -233,16 +234,19 @@ class FlightService:
     # --- events ------------------------------------------------------------------------
 
     async def _pump(self, active: ActiveFlight) -> None:
-        """Store every fleet event but the periodic progress; pass all on live."""
+        """Store every fleet event but the periodic progress (of which the positions are
+        kept once a second: the flown tracks); pass all on live."""
+        kept = float("-inf")
         async for event in active.fleet.events():
             message = event_json(event)
-            if isinstance(event, Progress):
-                active.last_progress = event
-            else:
+            if not isinstance(event, Progress):
                 self.book.events.record(
                     active.flight_id, message["kind"], message, message.get("uav_id")
                 )
-            active.tell(message)
+            elif event.at - kept >= TRACK_PERIOD_S:
+                kept = event.at
+                self.book.events.record(active.flight_id, "Positions", positions(event))
+            self.book.tell(active.flight_id, message)
 
     # --- live replanning ---------------------------------------------------------------
 
@@ -272,6 +276,16 @@ class FlightService:
         active.objects.append(new_object)
         active.plan = outcome.plan
         result = outcome.result
+        for uav, upload in outcome.uploads.items():
+            mission = outcome.missions[uav]
+            await self.book.flights.record_upload(
+                UploadRow(
+                    flight_id=active.flight_id, uav_id=uav, vehicle_id=active.vehicles[uav],
+                    ok=upload.ok, items=len(mission), detail=f"live replan: {upload.detail}",
+                    mission=plan_document(mission) if upload.ok else None,
+                )
+            )  # fmt: skip
+        pace = active.pace_factor
         self.metrics.replans.labels("feasible" if result.feasible else "unresolved").inc()
         answer = {
             "cell": list(new_object.cell),
@@ -282,13 +296,18 @@ class FlightService:
             "unresolved": result.unresolved,
             "feasible": result.feasible,
             "explanation": result.explanation,
+            "paths": {  # in the plan's own time, as GET /plans/{id} gives it
+                uav: [[t / pace, x, y] for t, x, y in trajectory]
+                for uav, trajectory in result.changed.items()
+                if outcome.uploads.get(uav) is not None and outcome.uploads[uav].ok
+            },
             "uploads": [
                 {"uav_id": u, "vehicle_id": active.vehicles[u], "ok": o.ok, "detail": o.detail}
                 for u, o in sorted(outcome.uploads.items())
             ],
         }
         self.book.events.record(active.flight_id, "ObjectReported", {"type": "event", **answer})
-        active.tell({"type": "event", "kind": "ObjectReported", **answer})
+        self.book.tell(active.flight_id, {"type": "event", "kind": "ObjectReported", **answer})
         return answer
 
     # --- releasing and deleting ----------------------------------------------------------
@@ -338,17 +357,11 @@ class FlightService:
         }
 
     async def listen(self, flight_id: str) -> asyncio.Queue[dict[str, Any]]:
-        await self.book.state(flight_id)
-        queue: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=1000)
-        active = self.book.active.get(flight_id)
-        if active is not None:
-            active.listeners.add(queue)
-        return queue
+        await self.book.state(flight_id)  # 404 for an unknown flight
+        return self.book.listen(flight_id)
 
     def unlisten(self, flight_id: str, queue: asyncio.Queue[dict[str, Any]]) -> None:
-        active = self.book.active.get(flight_id)
-        if active is not None:
-            active.listeners.discard(queue)
+        self.book.unlisten(flight_id, queue)
 
     def _answers(
         self,
@@ -384,3 +397,10 @@ def _refuse_airborne(row: FlightRow, links: dict[str, VehicleLink]) -> None:
                 f"vehicle {row.bindings[uav]} ({uav}) is {what}: "
                 "a mission is uploaded only to a vehicle disarmed on the ground"
             )
+
+
+def positions(progress: Progress) -> dict[str, Any]:
+    """The flown tracks' sample: where each vehicle is, on the flight's clock."""
+    vehicles = {p.uav_id: [p.lat, p.lon, p.alt_m] for p in progress.vehicles if p.lat is not None}
+    clock = max((p.clock_s for p in progress.vehicles), default=0.0)
+    return {"type": "event", "kind": "Positions", "clock_s": clock, "vehicles": vehicles}

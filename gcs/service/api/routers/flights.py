@@ -128,6 +128,10 @@ class ReplanOut(BaseModel):
     unresolved: list[str] = Field(description="touched UAVs no safe path was found for")
     feasible: bool
     explanation: str
+    paths: dict[str, list[list[float]]] = Field(
+        description="each changed UAV's new path, [t, x, y] in cells and in the plan's own "
+        "seconds (the flight's clock divided by its pace factor)"
+    )
     uploads: list[VehicleAnswerOut]
 
 
@@ -197,8 +201,11 @@ async def list_flights(
     records: FlightRecordsDep,
     limit: int = Query(default=50, ge=1, le=MAX_PAGE),
     offset: int = Query(default=0, ge=0, le=10**9),
+    open: bool = Query(default=False, description="only the open ones (all of them)"),
 ) -> list[FlightOut]:
-    return [flight_out(row) for row in await records.page(limit, offset)]
+    """Oldest first; `?open=true`: every flight that may have vehicles in the air."""
+    rows = await records.open_flights() if open else await records.page(limit, offset)
+    return [flight_out(row) for row in rows]
 
 
 @router.get("/{flight_id}", operation_id="getFlight", responses=ANSWERS)

@@ -44,13 +44,14 @@ function el(tag, attrs = {}, ...children) {
 
 const fmt = (v, digits = 2) => (v == null || Number.isNaN(v) ? "–" : Number(v).toFixed(digits));
 
-/** Every row of a list endpoint: they page oldest first, so read to the end. */
-async function getAll(path, pages = 20) {
+/** Every row of a list endpoint: they page oldest first (at most 200 rows a page). */
+async function getAll(path, pages = 50) {
+  const size = 200;
   const out = [];
   for (let k = 0; k < pages; k++) {
-    const page = await get(`${path}?limit=1000&offset=${k * 1000}`);
+    const page = await get(`${path}?limit=${size}&offset=${k * size}`);
     out.push(...page);
-    if (page.length < 1000) break;
+    if (page.length < size) break;
   }
   return out;
 }
@@ -700,7 +701,11 @@ function showReplan(answer) {
   if (S.lastReplan === key) return; // the answer and its event: show once
   S.lastReplan = key;
   field.reportedObject(answer.cell);
-  for (const uav of answer.changed ?? []) S.replanned.add(uav);
+  for (const [uav, path] of Object.entries(answer.paths ?? {})) {
+    const planned = S.plan?.plan.uavs.find((u) => u.id === uav);
+    if (planned) planned.trajectory = path; // the new path, in the plan's own time
+    S.replanned.add(uav);
+  }
   drawPlan();
   field.showTime(S.t);
   const list = (xs) => (xs?.length ? xs.join(", ") : "none");
@@ -711,7 +716,6 @@ function showReplan(answer) {
     el("p", { "data-field": "unresolved", class: answer.unresolved?.length ? "bad" : "", text: `unresolved: ${list(answer.unresolved)}` }),
     el("p", { class: answer.feasible ? "ok" : "bad", text: answer.feasible ? "the fleet is still separated" : "NOT separated" }),
     el("p", { class: "muted", text: answer.explanation ?? "" }),
-    el("p", { class: "muted", text: "New paths are not published by the API: a replanned UAV's old path is faded, its trail shows what it flies." }),
   );
   say(`object at ${answer.cell.join(", ")}: replanned ${list(answer.changed)}`);
 }
@@ -747,7 +751,13 @@ async function lookBack() {
       `${reached.length} waypoints reached, ${replans.length} objects reported, ${events.length} events`,
     ];
     if (!watched) field.clearVehicles();
-    // Flown tracks are not stored: draw the waypoints each UAV reached, as uploaded.
+    // The flown tracks (positions stored once a second), then the waypoints reached.
+    const samples = events.filter((e) => e.kind === "Positions");
+    for (const uav of Object.keys(flight.bindings)) {
+      const track = samples.map((e) => e.data.vehicles[uav]).filter((p) => p && p[0] != null);
+      if (track.length) field.flownTrack(order(uav), track.map(([lat, lon]) => [lat, lon]));
+    }
+    lines.push(`${samples.length} stored positions per vehicle (one a second): the flown tracks`);
     for (const uav of Object.keys(flight.bindings)) {
       const mine = reached.filter((e) => e.uav_id === uav);
       if (!mine.length) continue;
@@ -824,7 +834,7 @@ async function main() {
   await Promise.all([loadCases(), loadStoredList(), refreshVehicles(), loadFlights()]).catch(fail);
   setInterval(refreshVehicles, POLL_MS);
   // A flight still open from before (another tab, a reload): show it.
-  const open = (await getAll("/flights").catch(() => [])).reverse().find((f) => f.open);
+  const open = (await get("/flights?open=true").catch(() => [])).at(-1);
   if (open) {
     $("flight-select").value = open.id;
     await lookBack();

@@ -159,8 +159,8 @@ export class FieldMap {
     for (const [x, y] of cells) this.object(this.layers.plan, x, y, "object");
   }
 
-  /** Each UAV's path in its colour; the `replanned` ones (live replan: the API does not
-   * give their new paths) faded and marked, their vehicles' trails showing what they fly. */
+  /** Each UAV's path in its colour; the `replanned` ones (their new path, from the live
+   * replan's answer) marked as such. */
   setPlan(plan, order, cellSize, radii, replanned = new Set()) {
     const layer = this.layers.plan;
     layer.clearLayers();
@@ -173,7 +173,7 @@ export class FieldMap {
       const points = u.trajectory.map(([, x, y]) => this.ll(x, y));
       const changed = replanned.has(u.id);
       L.polyline(points, {
-        color: colourOf(i), weight: 3, opacity: changed ? 0.35 : 0.9, dashArray: dashOf(i),
+        color: colourOf(i), weight: changed ? 4 : 3, opacity: 0.9, dashArray: dashOf(i),
         interactive: false, className: `plan-path${changed ? " replanned" : ""}`,
       }).addTo(layer);
       const [, gx, gy] = u.trajectory[u.trajectory.length - 1];
@@ -252,6 +252,13 @@ export class FieldMap {
     this.layers.vehicles.clearLayers();
     this.layers.flown.clearLayers();
     this.vehicles.clear();
+  }
+
+  /** A UAV's flown track (look back), from the positions the service stored. */
+  flownTrack(i, latlngs) {
+    return L.polyline(latlngs, {
+      color: colourOf(i), weight: 2, opacity: 0.9, className: "flown-track", interactive: false,
+    }).addTo(this.layers.flown);
   }
 
   /** Stored points a UAV reached (look back): small rings in its colour. */
