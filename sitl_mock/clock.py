@@ -1,12 +1,20 @@
-"""Simulated time: fixed physics steps, with the wall clock deciding only how many to run."""
+"""Simulated time: fixed physics steps, with the wall clock deciding only how many to run.
+
+Like ArduPilot's SITL, the simulation never runs ahead of what the machine can do: each
+tick runs at most a few steps before the event loop handles the links again, and time
+that could not be run is let go (the simulation slips: it runs slower than its speed-up)
+rather than caught up in one burst. A ground station therefore always has its answers
+taken in within a tenth of a simulated second, loaded machine or not, as it would with a
+real autopilot, instead of the vehicles flying seconds on without hearing it.
+"""
 
 from __future__ import annotations
 
 import time
 
 DEFAULT_STEP_S = 0.02
-MAX_STEPS_PER_TICK = 200
-"""Bound on catching up after a stall, so a slow machine slips rather than spirals."""
+MAX_STEPS_PER_TICK = 5
+"""Steps run before the links are served again (0.1 simulated s): beyond that, slip."""
 
 
 class SimClock:

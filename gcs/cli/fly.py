@@ -102,7 +102,7 @@ async def _fly(scenario: Scenario, plan: Plan, urls: list[str], args: argparse.N
         display = ProgressDisplay()
         watcher = asyncio.create_task(_show(fleet, display))
         report = await fleet.fly()
-        await asyncio.wait_for(watcher, 5.0)
+        await asyncio.wait({watcher}, timeout=5.0)
         return _summary(report, plan, scenario)
     finally:
         await asyncio.gather(*(link.close() for link in links.values()))

@@ -48,8 +48,9 @@ class Subscription:
         """The next message, or WaitTimeoutError after `timeout` seconds."""
         if self._fault is not None:
             raise self._fault
-        try:
-            msg = await asyncio.wait_for(self._queue.get(), timeout)
+        try:  # asyncio.timeout, not wait_for: 3.11's wait_for can swallow a cancellation
+            async with asyncio.timeout(timeout):
+                msg = await self._queue.get()
         except TimeoutError:
             raise WaitTimeoutError(f"no {self._describe()} within {timeout:.2f} s") from None
         if self._fault is not None:

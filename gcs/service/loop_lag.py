@@ -16,7 +16,7 @@ PERIOD_S = 0.01
 
 
 class LoopLagProbe:
-    def __init__(self, histogram: Histogram | None = None, keep: int = 100_000) -> None:
+    def __init__(self, histogram: Histogram | None = None, keep: int = 10_000) -> None:
         self._histogram = histogram
         self.lags: deque[float] = deque(maxlen=keep)  # seconds late, most recent last
         self._task: asyncio.Task[None] | None = None
