@@ -10,6 +10,7 @@ PX4 takes DO_SET_MODE with its main and sub mode in param2 and param3.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 from dataclasses import dataclass
 
@@ -17,6 +18,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.commands import CommandAck, CommandPolicy, send_command
 from gcs.mavlink.errors import (
+    CommandError,
     CommandFailedError,
     CommandTemporarilyRejectedError,
     FlightError,
@@ -38,6 +40,7 @@ class ReadinessPolicy:
     arm_timeout_s: float = 90.0  # real SITL needs ~40 s for the EKF to use GPS
     arm_retry_period_s: float = 1.0
     climb_timeout_s: float = 60.0
+    home_timeout_s: float = 10.0
     altitude_tolerance: float = 0.95  # "at altitude" from this fraction of the target
 
 
@@ -94,13 +97,33 @@ class FlightActions:
 
     async def takeoff(self, altitude_m: float) -> None:
         if self.link.autopilot == Autopilot.PX4:
-            home = self.link.state.home
-            amsl = (home.alt_amsl_m if home else 0.0) + altitude_m
+            amsl = await self.home_altitude_amsl() + altitude_m
             await self.command(
                 mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, amsl
             )
         else:
             await self.command(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, altitude_m)
+
+    async def home_altitude_amsl(self) -> float:
+        """The home altitude (PX4 takes off to an AMSL altitude), asked for if the
+        HOME_POSITION stream has not brought it yet; a guess would fly to the wrong height."""
+        if self.link.state.home is None:
+            with self.link.subscribe(["HOME_POSITION"]) as sub:
+                with contextlib.suppress(CommandError):
+                    await self.command(
+                        mavlink2.MAV_CMD_REQUEST_MESSAGE, mavlink2.MAVLINK_MSG_ID_HOME_POSITION
+                    )
+                try:
+                    await sub.next_matching(None, self.readiness.home_timeout_s)
+                except WaitTimeoutError:
+                    raise FlightError(
+                        f"vehicle {self.link.sysid} sent no home position within "
+                        f"{self.readiness.home_timeout_s:.0f} s; its take-off altitude is "
+                        "relative to it"
+                    ) from None
+        home = self.link.state.home
+        assert home is not None
+        return home.alt_amsl_m
 
     async def arm_and_take_off(self, altitude_m: float) -> None:
         """GUIDED and armed as soon as the vehicle can (retried while it is "not ready",

@@ -60,6 +60,23 @@ async def test_arming_waits_for_the_estimate_then_takes_off(simulator, links, au
     assert sim.state(1).armed and sim.state(1).alt > 4.5
 
 
+async def test_px4_takes_off_to_the_asked_height_before_its_home_position_arrived(
+    simulator, links
+) -> None:
+    """PX4's take-off altitude is AMSL: without the home altitude the GCS must ask for it,
+    not guess 0 m (which sent the vehicle nowhere until it disarmed itself)."""
+    sim = simulator([VehicleConfig(sysid=1, home=CMAC, autopilot="px4")], speedup=20.0)
+    link = await links(sim, 1)
+    wait_for_estimate(sim)
+    actions = FlightActions(link, readiness=ReadinessPolicy(arm_retry_period_s=0.1))
+    await actions.set_mode("GUIDED")
+    await actions.arm()
+    link.state.home = None  # as if the 0.5 Hz HOME_POSITION stream had not come yet
+    await actions.takeoff(5.0)
+    await actions.wait_altitude(5.0)
+    assert sim.state(1).alt == pytest.approx(5.0, abs=0.6)
+
+
 async def test_arming_in_auto_is_refused_at_once(simulator, links) -> None:
     sim = simulator([VehicleConfig(sysid=1, home=CMAC)])
     link = await links(sim, 1)
