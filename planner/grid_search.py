@@ -61,6 +61,21 @@ class GridGraph:
         field = dijkstra(self.graph, indices=self.index(goal))
         return field.reshape(self.shape)
 
+    def tree_to(self, goal: Cell) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
+        """Distances to `goal` as [x, y] and each cell's next cell towards it (flat index,
+        -9999 where there is none): one Dijkstra, every start's shortest path."""
+        distance, towards = dijkstra(self.graph, indices=self.index(goal), return_predecessors=True)
+        return distance.reshape(self.shape), towards
+
+    def walk(self, towards: NDArray[np.int32], start: Cell) -> list[Cell]:
+        """The path from `start` along a `tree_to` tree (start must reach the goal)."""
+        height = self.shape[1]
+        path, at = [], self.index(start)
+        while at >= 0:
+            path.append((at // height, at % height))
+            at = int(towards[at])
+        return path
+
     def shortest_path(self, start: Cell, goal: Cell) -> list[Cell] | None:
         """Cells from start to goal along a shortest path, or None if the goal is cut off."""
         field = self.distances_to(goal)

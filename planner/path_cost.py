@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.clearance import ClearanceField
+from planner.clearance import ClearanceField, ExactClearance, distance_to_polyline
 from planner.trajectory import Trajectory
 
 Array = NDArray[np.float64]
@@ -49,9 +49,15 @@ class Traffic:
         start: Array,
         lower: Array,
         upper: Array,
+        corridor: tuple[Array, float] | None = None,
     ) -> Traffic:
         """`others` are (trajectory, radius, speed); the searcher leaves `start` at t = 0 and
-        stays inside [lower, upper], so it cannot meet anything it could not reach in time."""
+        stays inside [lower, upper], so it cannot meet anything it could not reach in time.
+
+        With a `corridor` (polyline, reach) the searcher also stays within `reach` of that
+        polyline, and only the samples that close to it are kept: the encounters of a
+        long path across a crowded map then shrink to those of the UAVs that cross it.
+        """
         step = 0.1 / max([speed] + [v for _, _, v in others])
         horizon = max((t.end_time for t, _, _ in others), default=0.0)
         grid = np.arange(0.0, horizon + step, step)
@@ -62,6 +68,10 @@ class Traffic:
             near = np.all((at >= lower - need) & (at <= upper + need), axis=1)
             with np.errstate(invalid="ignore"):  # NaN once the other UAV has landed
                 near &= np.hypot(*(at - start).T) - need <= speed * grid
+            if corridor is not None and near.any():
+                polyline, reach = corridor
+                close = distance_to_polyline(at[near], polyline) <= reach + need
+                near[np.flatnonzero(near)[~close]] = False
             slots.append(np.flatnonzero(near))
             places.append(at[near])
             needs.append(np.full(near.sum(), need))
@@ -178,13 +188,16 @@ def evaluate_paths(
     radius: float,
     goal: Array,
     traffic: Traffic,
-    field: ClearanceField,
+    field: ClearanceField | ExactClearance,
 ) -> PathTerms:
     """All cost terms of N candidate paths: waypoints (N, P, 2), hover times (N, P)."""
     times, positions = timeline(waypoints, waits, speed)
     steps = np.diff(waypoints, axis=1)
     separation, separation_hits = separation_terms(times, positions, traffic)
-    clearance, clearance_hits = clearance_terms(waypoints, radius, field, 1.0 / field.scale)
+    if isinstance(field, ExactClearance):
+        clearance, clearance_hits = field.leg_terms(waypoints, radius)
+    else:
+        clearance, clearance_hits = clearance_terms(waypoints, radius, field, 1.0 / field.scale)
     return PathTerms(
         length=np.hypot(steps[..., 0], steps[..., 1]).sum(axis=1),
         waiting=waits.sum(axis=1),
