@@ -74,7 +74,7 @@ def segments_clearance(p0: Array, p1: Array, cells: NDArray[np.int64]) -> Array:
 
 
 def tighten(
-    points: Array, clearance: float, blocked: NDArray[np.bool_], sweeps: int = 3, steps: int = 10
+    points: Array, clearance: float, blocked: NDArray[np.bool_], sweeps: int = 2, steps: int = 10
 ) -> Array:
     """Shorten a polyline by sliding each interior point towards the chord of its
     neighbours as far as its two legs stay `clearance` clear of blocked cells (exactly):
@@ -85,9 +85,10 @@ def tighten(
     """
     pts = np.array(points, dtype=float)
     fractions = np.linspace(1.0, 0.0, steps + 1)[:-1]
+    todo = set(range(1, len(pts) - 1))
     for _ in range(sweeps):
-        moved = False
-        for i in range(1, len(pts) - 1):
+        moved: set[int] = set()
+        for i in sorted(todo):
             a, v, b = pts[i - 1], pts[i], pts[i + 1]
             chord = b - a
             u = float(np.clip((v - a) @ chord / max(float(chord @ chord), 1e-300), 0.0, 1.0))
@@ -102,8 +103,10 @@ def tighten(
             ok = np.flatnonzero((clear[:k] >= clearance) & (clear[k:] >= clearance))
             if len(ok) and np.hypot(*(candidates[ok[0]] - v)) > 1e-6:
                 pts[i] = candidates[ok[0]]
-                moved = True
-        if not moved:
+                moved.add(i)
+        # Only a point whose neighbour moved can move further.
+        todo = {j for i in moved for j in (i - 1, i + 1) if 0 < j < len(pts) - 1}
+        if not todo:
             break
     return _drop_needless(pts, clearance, blocked)
 

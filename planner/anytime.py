@@ -43,8 +43,9 @@ from planner.clearance import ExactClearance, distance_to_polyline
 from planner.conflict_table import ConflictTable
 from planner.grid_search import GridGraph, cell_map
 from planner.objectives import HOVER_PRICE
+from planner.optimizers import get_algorithm
 from planner.path_encoding import DetourEncoding, TurnEncoding
-from planner.plan import Plan
+from planner.plan import Metrics, Plan, PlannedUAV
 from planner.planning import (
     FINISH_S,
     IMPROVEMENT,
@@ -76,7 +77,7 @@ MIN_SHARE = 1e-2  # of the plan's cost: unless its excess is at least this
 IMPROVE_ITERATIONS = 40  # at most, per improvement run
 IMPROVE_PATIENCE = 15  # iterations without gain that end an improvement run
 WINDOW = 5.0  # cells of lone path searched on either side of where a UAV hovers
-LARGE_GRID = 250  # cells; above it the clearance raster is coarser (memory, build time)
+SHAPING_SHARE = 0.3  # of the time budget: past it, lone paths are no longer shortened
 
 
 @dataclass
@@ -357,26 +358,29 @@ Route = list[tuple[int, int]]
 
 
 def _lone_paths(
-    scenario: Scenario, obstacles: NDArray[np.bool_], blocked: NDArray[np.bool_]
+    scenario: Scenario, obstacles: NDArray[np.bool_], blocked: NDArray[np.bool_], budget: Budget
 ) -> tuple[dict[str, Route], dict[str, Route], dict[str, float]]:
-    """Each UAV's shortest grid path with the objects blocked, its length, and which UAVs
-    the objects touch (their obstacle-only path runs into one: the wormhole step, eq. 9).
+    """Each UAV's shortest grid path with the objects blocked, its obstacle-only one (they
+    differ for the UAVs an object touches: the ones the wormhole step, eq. 9, replans),
+    and the first one's length; only the UAVs routed before the budget ran out.
 
-    One Dijkstra per UAV on the obstacle grid; a second only for a touched UAV. Where the
-    objects wall a goal off, the obstacle-only path is kept (and the plan will say so).
+    One bounded Dijkstra per UAV on the obstacle grid (`GridGraph.route`); a second only
+    for a touched UAV. Where the objects wall a goal off, the obstacle-only path is kept
+    (and the plan will say so).
     """
     plain = GridGraph.build(obstacles)
     with_objects = GridGraph.build(blocked) if (blocked != obstacles).any() else plain
     routes, first, lengths = {}, {}, {}
     for u in scenario.uavs:
-        distance, towards = plain.tree_to(u.goal)
-        cells = plain.walk(towards, u.start)
-        first[u.id], lengths[u.id] = cells, float(distance[u.start])
+        if budget.expired():
+            break
+        length, cells = plain.route(u.start, u.goal)
+        assert cells is not None, "the scenario's validation guarantees a path"
+        first[u.id], lengths[u.id] = cells, length
         if with_objects is not plain and not _valid(cells, blocked):
-            distance, towards = with_objects.tree_to(u.goal)
-            if np.isfinite(distance[u.start]):
-                cells = with_objects.walk(towards, u.start)
-                lengths[u.id] = float(distance[u.start])
+            around, detour = with_objects.route(u.start, u.goal)
+            if detour is not None:
+                cells, lengths[u.id] = detour, around
         routes[u.id] = cells
     return routes, first, lengths
 
@@ -426,14 +430,21 @@ def plan_anytime(
     objects = scenario.object_cells()
     object_map = cell_map(objects, obstacles.shape)
     blocked = obstacles | object_map
-    routes, first_routes, shortest = _lone_paths(scenario, obstacles, blocked)
+    routes, first_routes, shortest = _lone_paths(scenario, obstacles, blocked, budget)
+    if len(routes) < len(specs):
+        return _refused(scenario, settings, budget, routes, shortest)
+    # Shortcuts and tightening only shorten the lone paths: with a budget they stop at a
+    # share of it, and the rest of the fleet keeps its grid paths (as safe, a bit longer).
+    shaping = budget.seconds is None or budget.elapsed() < SHAPING_SHARE * budget.seconds
     geometry, paths = {}, {}
     for u in scenario.uavs:
-        cells = np.array(routes[u.id], dtype=float)
-        geometry[u.id] = tighten(pull_string(cells, u.radius, blocked), u.radius, blocked)
-        paths[u.id] = Trajectory.from_waypoints(geometry[u.id], u.speed)
-    scale = 4 if max(obstacles.shape) > LARGE_GRID else 8
-    world = _Map(blocked, None, blocked, scale)
+        cells = merge_collinear(np.array(routes[u.id], dtype=float))
+        if shaping:
+            cells = tighten(pull_string(cells, u.radius, blocked), u.radius, blocked)
+            shaping = budget.seconds is None or budget.elapsed() < SHAPING_SHARE * budget.seconds
+        geometry[u.id] = cells
+        paths[u.id] = Trajectory.from_waypoints(cells, u.speed)
+    world = _Map(blocked, None, blocked)
     radii = {u.id: u.radius for u in scenario.uavs}
     checked = time.perf_counter()
     table = ConflictTable.build(paths, radii, blocked)
@@ -470,3 +481,65 @@ def plan_anytime(
         state.paths = state.best.paths
         state.replans = state.best.replans
     return _finish(state, _Map(obstacles, None, obstacles), first, reason)
+
+
+def _refused(
+    scenario: Scenario,
+    settings: PlannerSettings,
+    budget: Budget,
+    routes: dict[str, Route],
+    shortest: dict[str, float],
+) -> Plan:
+    """The plan when the budget ran out before every UAV had even a lone path: infeasible,
+    with the routed UAVs on their grid paths, the others on their starts, and a conflict
+    that says so (no exact check: nothing here is meant to be flown)."""
+    missing = [u.id for u in scenario.uavs if u.id not in routes]
+    message = (
+        f"planning refused: the time budget of {settings.time_budget_s:g} s ran out after "
+        f"routing {len(routes)} of {len(scenario.uavs)} UAVs ({', '.join(missing[:5])}"
+        f"{', ...' if len(missing) > 5 else ''} have no path); give it more time or plan "
+        "fewer UAVs"
+    )
+    uavs = []
+    for u in scenario.uavs:
+        cells = routes.get(u.id, [u.start])
+        trajectory = Trajectory.from_waypoints(merge_collinear(np.array(cells, float)), u.speed)
+        uavs.append(
+            PlannedUAV(
+                id=u.id,
+                trajectory=trajectory.to_json(),
+                length=round(trajectory.length, 6),
+                deviation=round(float(np.hypot(*(trajectory.end - np.array(u.goal)))), 6),
+                priority=0.0,
+                moving_rate=round(shortest.get(u.id, float("nan")), 6),
+                threat=0.0,
+                shortest_length=round(shortest.get(u.id, float("nan")), 6),
+                replanned=[],
+            )
+        )
+    return Plan(
+        stop_reason="budget",
+        time_budget_s=settings.time_budget_s,
+        feasible=False,
+        algorithm=get_algorithm(settings.algorithm).name,
+        objective=settings.objective,
+        seed=settings.seed,
+        population=settings.population,
+        iterations=settings.iterations,
+        scenario=scenario.name,
+        uavs=uavs,
+        non_uav_objects=[list(c) for c in scenario.object_cells()],
+        metrics=Metrics(
+            conflicts=1,
+            min_separation=None,
+            mean_deviation=round(float(np.mean([u.deviation for u in uavs])), 6),
+            total_length=round(sum(u.length for u in uavs), 6),
+            J=0.0,
+            nfe=0,
+            seconds=round(budget.elapsed(), 4),
+            replans=0,
+            iterations_run=0,
+        ),
+        conflicts=[{"kind": "budget", "uavs": missing, "message": message}],
+        history=[],
+    )
