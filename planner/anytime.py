@@ -29,7 +29,6 @@ budget is set, so without one the same seed gives the same plan.
 
 from __future__ import annotations
 
-import time
 from collections import Counter
 from dataclasses import dataclass, field
 
@@ -62,7 +61,7 @@ from planner.planning import (
     _Planning,
 )
 from planner.references.prioritized import SearchLimits
-from planner.safety import cell_conflicts
+from planner.safety import SafetyReport, cell_conflicts, uav_conflicts
 from planner.scenario import Scenario
 from planner.sipp import Mover, schedule
 from planner.trajectory import Trajectory, merge_collinear
@@ -220,8 +219,7 @@ class _Anytime(_Planning):
         flight = schedule(self.geometry[uav], spec.speed, spec.radius, others)
         if flight is not None:
             return flight
-        deadline = time.perf_counter() + self.budget.remaining()
-        found = space_time.search(spec, self.free, others, SearchLimits(), deadline)
+        found = space_time.search(spec, self.free, others, SearchLimits(), self.budget.expired)
         if found is None:
             return None
         pulled = pull_string(_geometry(found), spec.radius, self.table.blocked)
@@ -432,7 +430,15 @@ def plan_anytime(
     blocked = obstacles | object_map
     routes, first_routes, shortest = _lone_paths(scenario, obstacles, blocked, budget)
     if len(routes) < len(specs):
-        return _refused(scenario, settings, budget, routes, shortest)
+        missing = [u.id for u in scenario.uavs if u.id not in routes]
+        return _refused(
+            scenario,
+            settings,
+            budget,
+            routes,
+            shortest,
+            f"routing {len(routes)} of {len(specs)} UAVs ({_some(missing)} have no path)",
+        )
     # Shortcuts and tightening only shorten the lone paths: with a budget they stop at a
     # share of it, and the rest of the fleet keeps its grid paths (as safe, a bit longer).
     shaping = budget.seconds is None or budget.elapsed() < SHAPING_SHARE * budget.seconds
@@ -446,10 +452,21 @@ def plan_anytime(
         paths[u.id] = Trajectory.from_waypoints(cells, u.speed)
     world = _Map(blocked, None, blocked)
     radii = {u.id: u.radius for u in scenario.uavs}
-    checked = time.perf_counter()
-    table = ConflictTable.build(paths, radii, blocked)
+    checked = budget.elapsed()
+    table = ConflictTable(radii, blocked)
+    for count, (uav, trajectory) in enumerate(paths.items()):
+        if budget.expired():
+            return _refused(
+                scenario,
+                settings,
+                budget,
+                routes,
+                shortest,
+                f"checking {count} of {len(paths)} lone paths against the others",
+            )
+        table.update(uav, trajectory)
     # The final exact check covers every pair as the table's build did: keep its time back.
-    budget.keep_back(2.0 * (time.perf_counter() - checked) + FINISH_S)
+    budget.keep_back(2.0 * (budget.elapsed() - checked) + FINISH_S)
     rng = np.random.default_rng(settings.seed)
     state = _Anytime(
         scenario,
@@ -477,10 +494,35 @@ def plan_anytime(
     if not state.table.clear() and not budget.expired():
         state.resolve_conflicts(world)  # what waiting and stepping aside could not solve
     reason = state.improve_anytime(world)
-    if state.best is not None:
-        state.paths = state.best.paths
-        state.replans = state.best.replans
-    return _finish(state, _Map(obstacles, None, obstacles), first, reason)
+    judged = _Map(obstacles, None, obstacles)
+    if state.best is None:  # not safe: the table's exact verdict says why, at no extra cost
+        return _finish(state, judged, first, reason, _table_report(state, obstacles, object_map))
+    state.paths = state.best.paths
+    state.replans = state.best.replans
+    return _finish(state, judged, first, reason)  # a fresh exact check has the last word
+
+
+def _table_report(
+    state: _Anytime, obstacles: NDArray[np.bool_], objects: NDArray[np.bool_]
+) -> SafetyReport:
+    """The exact check's report from the conflict table: its pairs in conflict (in fleet
+    order) and the cells of the UAVs it counts inside one."""
+    order = {u: k for k, u in enumerate(state.specs)}
+    conflicts = sorted(state.table.pairs.values(), key=lambda c: sorted(order[u] for u in c.uavs))
+    for uav, hits in state.table.cell_hits.items():
+        if hits:
+            radius = state.specs[uav].radius
+            conflicts += cell_conflicts(uav, state.paths[uav], radius, obstacles, "obstacle")
+            conflicts += cell_conflicts(uav, state.paths[uav], radius, objects, "non_uav_object")
+    if state.table.pairs:
+        closest = min(c.separation for c in state.table.pairs.values())
+    else:
+        closest = uav_conflicts(state.paths, state.radii)[1]
+    return SafetyReport(conflicts, closest)
+
+
+def _some(ids: list[str]) -> str:
+    return ", ".join(ids[:5]) + (", ..." if len(ids) > 5 else "")
 
 
 def _refused(
@@ -489,16 +531,16 @@ def _refused(
     budget: Budget,
     routes: dict[str, Route],
     shortest: dict[str, float],
+    doing: str,
 ) -> Plan:
-    """The plan when the budget ran out before every UAV had even a lone path: infeasible,
-    with the routed UAVs on their grid paths, the others on their starts, and a conflict
-    that says so (no exact check: nothing here is meant to be flown)."""
-    missing = [u.id for u in scenario.uavs if u.id not in routes]
+    """The plan when the budget ran out before the fleet's lone paths were even known to
+    conflict or not: infeasible, the routed UAVs on their grid paths, the others on their
+    starts, and one conflict that says what was being done (no exact check: nothing here
+    is meant to be flown)."""
+    missing = [u.id for u in scenario.uavs if u.id not in routes] or [u.id for u in scenario.uavs]
     message = (
-        f"planning refused: the time budget of {settings.time_budget_s:g} s ran out after "
-        f"routing {len(routes)} of {len(scenario.uavs)} UAVs ({', '.join(missing[:5])}"
-        f"{', ...' if len(missing) > 5 else ''} have no path); give it more time or plan "
-        "fewer UAVs"
+        f"planning refused: the time budget of {settings.time_budget_s:g} s ran out while "
+        f"{doing}; give it more time or plan fewer UAVs"
     )
     uavs = []
     for u in scenario.uavs:

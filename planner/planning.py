@@ -537,8 +537,17 @@ def _as_waypoints(trajectory: Trajectory) -> tuple[Array, Array]:
     return np.array(waypoints), np.array(waits)
 
 
-def _finish(state: _Planning, world: _Map, first: Exploration, reason: StopReason) -> Plan:
-    report = check_plan(state.paths, state.radii, world.blocked, state.objects)
+def _finish(
+    state: _Planning,
+    world: _Map,
+    first: Exploration,
+    reason: StopReason,
+    report: SafetyReport | None = None,
+) -> Plan:
+    """The plan as returned, judged by the exact check (or by `report`, an exact verdict
+    already at hand for a plan that is not safe)."""
+    if report is None:
+        report = check_plan(state.paths, state.radii, world.blocked, state.objects)
     count = len(state.specs) + len(state.objects)
     uavs, fitness = [], []
     for uid, spec in state.specs.items():

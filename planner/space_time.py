@@ -12,8 +12,7 @@ seconds, so that a move is tested only against the flights that can come near it
 from __future__ import annotations
 
 import math
-import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,12 +47,12 @@ class _IndexedSearch(_Search):
     ends: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     reach: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     speeds: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    deadline: float = math.inf
+    out_of_time: Callable[[], bool] = lambda: False
     tests: int = 0
 
     def safe(self, move: Move) -> bool:
         self.tests += 1
-        if self.tests % CLOCK_EVERY == 0 and time.perf_counter() > self.deadline:
+        if self.tests % CLOCK_EVERY == 0 and self.out_of_time():
             raise _OutOfTime
         t0, x0, y0, t1, _, _ = move
         if not self.flights:
@@ -73,10 +72,10 @@ def search(
     free: NDArray[np.bool_],
     others: Sequence[Mover],
     limits: SearchLimits = DEFAULT_LIMITS,
-    deadline: float = math.inf,
+    out_of_time: Callable[[], bool] = lambda: False,
 ) -> Trajectory | None:
     """The earliest-arriving grid path with waits that keeps exactly clear of `others`,
-    or None (expansion limit, horizon, or `deadline` on the perf_counter clock)."""
+    or None (expansion limit, horizon, or `out_of_time`, asked every CLOCK_EVERY moves)."""
     flights = [_Flight.of(o.trajectory, o.radius) for o in others]
     side = free.shape[0] + free.shape[1]
     horizon = max((f.ts[-1] for f in flights), default=0.0) + 2 * side / spec.speed
@@ -100,7 +99,7 @@ def search(
         ends=np.array([o.trajectory.end_time for o in others]),
         reach=np.array([spec.radius + o.radius for o in others]) + speeds * BUCKET / 2,
         speeds=speeds,
-        deadline=deadline,
+        out_of_time=out_of_time,
     )
     try:
         states = run.run()
