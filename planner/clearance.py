@@ -143,7 +143,7 @@ class ExactClearance:
         gap = segment_square_distance(a[legs], a[legs] + d[legs], self.cells[cells])
         deficit = np.maximum(radius - gap, 0.0)
         row = legs // (p - 1)
-        depth = np.bincount(row, weights=deficit, minlength=n)
+        depth = np.bincount(row, weights=deficit, minlength=n).astype(np.float64)
         entered = np.zeros(n * (p - 1), dtype=bool)
         entered[legs[deficit > 0]] = True
-        return depth, entered.reshape(n, p - 1).sum(axis=1)
+        return depth, entered.reshape(n, p - 1).sum(axis=1).astype(np.intp)

@@ -50,7 +50,8 @@ class GridGraph:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.blocked.shape  # type: ignore[return-value]
+        width, height = self.blocked.shape
+        return width, height
 
     def index(self, cell: Cell) -> int:
         return cell[0] * self.shape[1] + cell[1]
@@ -85,7 +86,7 @@ class GridGraph:
         starts 10 % above the octile distance and grows until it holds; on an open map
         the ellipse is a tenth of the grid.
         """
-        span = _octile(np.array(start), np.array(goal))
+        span = float(_octile(np.array(start), np.array(goal)))
         for factor in (1.1, 1.5, 3.0):
             bound = factor * span + 3.0
             idx = self._ellipse(start, goal, bound, span)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -78,8 +79,8 @@ class Traffic:
         slot = np.concatenate(slots) if slots else np.zeros(0, dtype=np.intp)
         used, slot = np.unique(slot, return_inverse=True)
         where = np.concatenate(places) if places else np.zeros((0, 2))
-        need = np.concatenate(needs) if needs else np.zeros(0)
-        return cls(grid[used], slot.astype(np.intp), where, need, step)
+        needed = np.concatenate(needs) if needs else np.zeros(0)
+        return cls(grid[used], slot.astype(np.intp), where, needed, step)
 
 
 @dataclass(frozen=True)
@@ -91,9 +92,9 @@ class PathTerms:
     end_time: Array
     deviation: Array  # distance of the last waypoint from the goal
     separation_deficit: Array  # Σ over encounters of (needed - distance) x step, UAVs
-    separation_hits: Array  # encounters where two UAVs come too close
+    separation_hits: NDArray[Any]  # encounters where two UAVs come too close (a count)
     clearance_deficit: Array  # Σ over samples of (needed - clearance) x spacing, obstacles
-    clearance_hits: Array  # samples inside an obstacle's reach
+    clearance_hits: NDArray[Any]  # samples (or legs) inside an obstacle's reach (a count)
 
     @property
     def safe(self) -> NDArray[np.bool_]:
@@ -129,7 +130,9 @@ def batched_interp(queries: Array, knots: Array, values: Array) -> Array:
     return out.reshape(*queries.shape, -1)
 
 
-def separation_terms(times: Array, positions: Array, traffic: Traffic) -> tuple[Array, Array]:
+def separation_terms(
+    times: Array, positions: Array, traffic: Traffic
+) -> tuple[Array, NDArray[Any]]:
     """Shortfall of every candidate's distance to the other UAVs at their encounters."""
     n = times.shape[0]
     if traffic.slot.size == 0:
@@ -154,7 +157,7 @@ def _fractions(q: int) -> Array:
 
 def clearance_terms(
     waypoints: Array, radius: float, field: ClearanceField, margin: float
-) -> tuple[Array, Array]:
+) -> tuple[Array, NDArray[np.intp]]:
     """Sampled clearance along the legs against blocked cells (and the grid's edge).
 
     A leg whose ends are both clear by more than half its length plus the radius is
@@ -175,7 +178,8 @@ def clearance_terms(
     points = starts[:, None, :] + frac[None, :, None] * legs[rows, cols][:, None, :]
     deficit = np.maximum(radius + margin - field.at(points), 0.0)  # (M, q)
     step = np.maximum(length[rows, cols] / (q - 1), SPACING)
-    depth = np.bincount(rows, weights=(deficit * step[:, None]).sum(axis=1), minlength=n)
+    weights = (deficit * step[:, None]).sum(axis=1)
+    depth = np.asarray(np.bincount(rows, weights=weights, minlength=n), dtype=np.float64)
     hits = np.bincount(rows, weights=(deficit > 0).sum(axis=1), minlength=n)
     return depth, hits.astype(np.intp)
 

@@ -196,8 +196,8 @@ def _flight(
     corners = np.array(sorted(stops))
     for k, wait in hover.items():
         near = corners[np.argmin(np.abs(corners - s[k]))]
-        at = float(near) if abs(near - s[k]) < 1e-9 else float(s[k])
-        stops[at] = stops.get(at, 0.0) + wait
+        where = float(near) if abs(near - s[k]) < 1e-9 else float(s[k])
+        stops[where] = stops.get(where, 0.0) + wait
     at = np.array(sorted(stops))
     points = np.column_stack(
         [np.interp(at, along, waypoints[:, 0]), np.interp(at, along, waypoints[:, 1])]
