@@ -1,9 +1,15 @@
-"""Distance from any point of the map to the nearest blocked cell, on a fine raster.
+"""Clearance from blocked cells for the optimizer's cost: a raster, or exact per leg.
 
-The optimizer's cost needs the clearance of thousands of points per evaluation;
-reading it from a precomputed distance transform is one gather. It is approximate
-(to half a pixel), which is why the cost adds a margin and every plan is judged by
-the exact check in `planner.safety`.
+`ClearanceField`: distance from any point of the map to the nearest blocked cell, on a
+fine raster. The cost needs the clearance of thousands of points per evaluation;
+reading it from a precomputed distance transform is one gather. It is approximate (to
+half a pixel), which is why the cost adds a margin. Algorithm 1 as the paper runs it
+uses it.
+
+`ExactClearance`: the blocked cells near one search's corridor, and the exact distance
+of each leg of each candidate to them (the safety check's own geometry), for the
+anytime planner: no raster to build on a 500 x 500 map, and no margin that would keep
+a path off the obstacles it may hug. Every plan is still judged by `planner.safety`.
 """
 
 from __future__ import annotations

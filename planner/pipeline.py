@@ -1,5 +1,9 @@
 """Algorithm 1 of the paper: explore (white hole), exploit (black hole), wormhole.
 
+`plan` runs the anytime `qos` flow of `planner.anytime` (a safe start, then the
+optimizer where it pays) unless the objective is `paper` or `safe_start` is off; then
+it runs Algorithm 1 as the paper does, below.
+
 1. Every UAV starts on its shortest grid path.
 2. While two UAVs' paths conflict, the conflicting UAV with the highest priority
    (eq. 7) searches a new path with the optimizer against the others' paths (eq. 8),

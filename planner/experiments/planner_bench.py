@@ -131,13 +131,17 @@ def _header(config: PlannerBenchConfig) -> str:
 
 - Command: `mvo-gcs bench planner --scenarios {config.scenarios} --first-seed \
 {config.first_seed} --algorithm {config.algorithm} --population {config.population} \
---iterations {config.iterations}`
+--iterations {config.iterations}{_workers(config)}`
 - Machine: {describe_machine()}
 - Every plan is judged by the exact continuous-time check (`planner.safety`).
 - Ours run with the default time budget of 5 s unless a section says otherwise; a
   plan ends when improving its first safe plan stops paying (converged), at the latest
   at the budget.
 """
+
+
+def _workers(config: PlannerBenchConfig) -> str:
+    return f" --workers {config.workers}" if config.workers else ""
 
 
 def _cases_section(config: PlannerBenchConfig) -> str:
