@@ -139,6 +139,9 @@ def cell_conflicts(
     hits: dict[Cell, Conflict] = {}
     pts, ts = trajectory.xy, trajectory.times
     segments = [(0, 0)] if len(pts) == 1 else [(k, k + 1) for k in range(len(pts) - 1)]
+    # A hover after a leg stays where the leg ended: nothing the leg did not already see.
+    moved = np.any(pts[1:] != pts[:-1], axis=1) if len(pts) > 1 else np.ones(0, dtype=bool)
+    segments = [(k0, k1) for k0, k1 in segments if k0 == 0 or moved[k0]]
     for k0, k1 in segments:
         cells = _cells_near(pts[k0], pts[k1], radius, blocked)
         if not len(cells):
