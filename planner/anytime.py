@@ -4,8 +4,9 @@ Algorithm 1 with its exploration made constructive (see docs/planner.md):
 
 1. **Lone paths.** Every UAV's shortest 8-connected path (obstacles and the non-UAV
    objects blocked; a UAV whose obstacle-only path an object touches is the one the
-   wormhole step, eq. 9, replans), with its string pulled (`planner.any_angle`): the
-   any-angle polyline a UAV alone would fly.
+   wormhole step, eq. 9, replans), with its string pulled and tightened round the
+   corners it bends at (`planner.any_angle`): the any-angle polyline a UAV alone would
+   fly, every shortcut exactly clear of blocked cells.
 2. **Safe start (white hole).** While two flights conflict, the UAV in trouble with the
    highest priority ImP (eq. 7) is made safe against all the others, held fixed: first by
    hovering where it must along its own path (safe intervals, `planner.sipp`), else by a
@@ -13,13 +14,14 @@ Algorithm 1 with its exploration made constructive (see docs/planner.md):
    conflict of that UAV and creates none, so the loop ends after at most one success per
    UAV; a UAV that cannot be made safe waits until another one's path changes. What is
    left is handed to the optimizer (step 2 of the paper's Algorithm 1) while time lasts.
-3. **Improvement (black hole, eq. 8).** Only UAVs whose flight costs more than their lone
-   path (they hover or detour because others are near) are worked on, most excess first:
-   first they are re-timed (their hovers recomputed against the others as they now
-   fly), then the optimizer searches around their lone path for a cheaper flight. A
-   change is kept only if it is cheaper and the exact check still passes. A round that
-   gains less than `ROUND_GAIN` of the plan's cost ends planning as converged: that is
-   where improvement stops paying.
+3. **Improvement (black hole, eq. 8).** Only UAVs whose flight costs noticeably more than
+   their lone path (they hover or detour because others are near) are worked on, most
+   excess first: first they are re-timed (their hovers recomputed against the others as
+   they now fly), then the optimizer searches a window of their lone path round where
+   they hover for a cheaper flight, against only the others near it. A change is kept
+   only if it lowers the true cost and the exact check still passes. A round that gains
+   less than `ROUND_GAIN` of the plan's cost ends planning as converged: that is where
+   improvement stops paying.
 
 The conflict table keeps the exact check's verdict for every pair as paths change, so the
 first safe plan is known the moment it exists; the final plan is checked once more by
@@ -71,8 +73,8 @@ Array = NDArray[np.float64]
 SAFE_START = "safe start"  # the reason recorded for a path of the safe start
 RETIME = "re-time"  # what progress reports while the improvement phase re-times a UAV
 ROUND_GAIN = 2e-3  # relative: a round of improvement that gains less has converged
-MIN_EXCESS = 0.1  # of its lone path: a UAV whose flight costs less more is left alone
-MIN_SHARE = 1e-2  # of the plan's cost: unless its excess is at least this
+MIN_EXCESS = 0.1  # of its lone path's cost: a UAV with less excess than this is left alone,
+MIN_SHARE = 1e-2  # unless its excess is at least this share of the plan's cost
 IMPROVE_ITERATIONS = 40  # at most, per improvement run
 IMPROVE_PATIENCE = 15  # iterations without gain that end an improvement run
 WINDOW = 5.0  # cells of lone path searched on either side of where a UAV hovers
