@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.clearance import ClearanceField
+from planner.clearance import ClearanceField, ExactClearance
 from planner.objectives import PathObjective
 from planner.optimizers import Algorithm, OptimizeResult, Progress, optimize
 from planner.path_cost import PathTerms, Traffic, evaluate_paths
@@ -38,7 +38,7 @@ class Search:
     radius: float
     goal: Array
     traffic: Traffic
-    field: ClearanceField
+    field: ClearanceField | ExactClearance
     objective: PathObjective
 
     def terms(self, waypoints: Array, waits: Array) -> PathTerms:

@@ -50,7 +50,8 @@ class GridGraph:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.blocked.shape  # type: ignore[return-value]
+        width, height = self.blocked.shape
+        return width, height
 
     def index(self, cell: Cell) -> int:
         return cell[0] * self.shape[1] + cell[1]
@@ -60,6 +61,62 @@ class GridGraph:
         # Moves are symmetric, so distances from the goal equal distances to it.
         field = dijkstra(self.graph, indices=self.index(goal))
         return field.reshape(self.shape)
+
+    def tree_to(self, goal: Cell) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
+        """Distances to `goal` as [x, y] and each cell's next cell towards it (flat index,
+        -9999 where there is none): one Dijkstra, every start's shortest path."""
+        distance, towards = dijkstra(self.graph, indices=self.index(goal), return_predecessors=True)
+        return distance.reshape(self.shape), towards
+
+    def walk(self, towards: NDArray[np.int32], start: Cell) -> list[Cell]:
+        """The path from `start` along a `tree_to` tree (start must reach the goal)."""
+        height = self.shape[1]
+        path, at = [], self.index(start)
+        while at >= 0:
+            path.append((at // height, at % height))
+            at = int(towards[at])
+        return path
+
+    def route(self, start: Cell, goal: Cell) -> tuple[float, list[Cell] | None]:
+        """A shortest path from `start` to `goal` and its length (inf, None: cut off).
+
+        Dijkstra on the cells whose octile distances to both ends add up to at most a
+        bound B (an ellipse round the two): every path of length at most B lies inside
+        it, so a path found within B is a shortest one of the whole grid. The bound
+        starts 10 % above the octile distance and grows until it holds; on an open map
+        the ellipse is a tenth of the grid.
+        """
+        span = float(_octile(np.array(start), np.array(goal)))
+        for factor in (1.1, 1.5, 3.0):
+            bound = factor * span + 3.0
+            idx = self._ellipse(start, goal, bound, span)
+            sub = self.graph[idx][:, idx]
+            to, at = np.searchsorted(idx, [self.index(goal), self.index(start)])
+            distance, towards = dijkstra(sub, indices=int(to), return_predecessors=True)
+            if distance[at] <= bound:
+                path, k = [], int(at)
+                while k >= 0:
+                    path.append(divmod(int(idx[k]), self.shape[1]))
+                    k = int(towards[k])
+                return float(distance[at]), [(x, y) for x, y in path]
+        field, towards = self.tree_to(goal)
+        if not np.isfinite(field[start]):
+            return float("inf"), None
+        return float(field[start]), self.walk(towards, start)
+
+    def _ellipse(self, start: Cell, goal: Cell, bound: float, span: float) -> NDArray[np.intp]:
+        """Flat indices (sorted) of the free cells c with oct(start, c) + oct(c, goal) <= bound."""
+        pad = int(np.ceil((bound - span) / 2)) + 1
+        ends = np.array([start, goal])
+        lo = np.maximum(ends.min(axis=0) - pad, 0)
+        hi = np.minimum(ends.max(axis=0) + pad, np.array(self.shape) - 1)
+        xs, ys = np.meshgrid(
+            np.arange(lo[0], hi[0] + 1), np.arange(lo[1], hi[1] + 1), indexing="ij"
+        )
+        cells = np.stack([xs, ys], axis=-1)
+        inside = _octile(cells, np.array(start)) + _octile(cells, np.array(goal)) <= bound
+        inside &= ~self.blocked[xs, ys]
+        return xs[inside] * self.shape[1] + ys[inside]
 
     def shortest_path(self, start: Cell, goal: Cell) -> list[Cell] | None:
         """Cells from start to goal along a shortest path, or None if the goal is cut off."""
@@ -89,6 +146,12 @@ def descend(field: NDArray[np.float64], start: Cell, blocked: NDArray[np.bool_])
         x, y = best_cell
         path.append(best_cell)
     return path
+
+
+def _octile(a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Octile distance (8-connected, diagonals √2) between cells, broadcast over (..., 2)."""
+    d = np.abs(a - b)
+    return np.max(d, axis=-1) + (np.sqrt(2.0) - 1.0) * np.min(d, axis=-1)
 
 
 def cell_map(cells: Iterable[Cell], shape: tuple[int, int]) -> NDArray[np.bool_]:

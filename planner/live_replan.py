@@ -158,7 +158,7 @@ def replan_live(
     fleet = _remaining(plan, now)
     blocking = _Blocking.build(
         scenario.blocked(),
-        [tuple(c) for c in plan.non_uav_objects],
+        [(c[0], c[1]) for c in plan.non_uav_objects],
         [*known_objects, new_object],
         now,
     )
@@ -393,6 +393,7 @@ def _routes(
             c.cell
             for u, t in fixed.items()
             for c in cell_conflicts(u, t, specs[u].radius, everywhere)
+            if c.cell is not None  # always set for a cell conflict
         ],
         static.shape,
     )

@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.clearance import ClearanceField
+from planner.clearance import ClearanceField, ExactClearance, distance_to_polyline
 from planner.trajectory import Trajectory
 
 Array = NDArray[np.float64]
@@ -49,9 +50,15 @@ class Traffic:
         start: Array,
         lower: Array,
         upper: Array,
+        corridor: tuple[Array, float] | None = None,
     ) -> Traffic:
         """`others` are (trajectory, radius, speed); the searcher leaves `start` at t = 0 and
-        stays inside [lower, upper], so it cannot meet anything it could not reach in time."""
+        stays inside [lower, upper], so it cannot meet anything it could not reach in time.
+
+        With a `corridor` (polyline, reach) the searcher also stays within `reach` of that
+        polyline, and only the samples that close to it are kept: the encounters of a
+        long path across a crowded map then shrink to those of the UAVs that cross it.
+        """
         step = 0.1 / max([speed] + [v for _, _, v in others])
         horizon = max((t.end_time for t, _, _ in others), default=0.0)
         grid = np.arange(0.0, horizon + step, step)
@@ -62,14 +69,18 @@ class Traffic:
             near = np.all((at >= lower - need) & (at <= upper + need), axis=1)
             with np.errstate(invalid="ignore"):  # NaN once the other UAV has landed
                 near &= np.hypot(*(at - start).T) - need <= speed * grid
+            if corridor is not None and near.any():
+                polyline, reach = corridor
+                close = distance_to_polyline(at[near], polyline) <= reach + need
+                near[np.flatnonzero(near)[~close]] = False
             slots.append(np.flatnonzero(near))
             places.append(at[near])
             needs.append(np.full(near.sum(), need))
         slot = np.concatenate(slots) if slots else np.zeros(0, dtype=np.intp)
         used, slot = np.unique(slot, return_inverse=True)
         where = np.concatenate(places) if places else np.zeros((0, 2))
-        need = np.concatenate(needs) if needs else np.zeros(0)
-        return cls(grid[used], slot.astype(np.intp), where, need, step)
+        needed = np.concatenate(needs) if needs else np.zeros(0)
+        return cls(grid[used], slot.astype(np.intp), where, needed, step)
 
 
 @dataclass(frozen=True)
@@ -81,9 +92,9 @@ class PathTerms:
     end_time: Array
     deviation: Array  # distance of the last waypoint from the goal
     separation_deficit: Array  # Σ over encounters of (needed - distance) x step, UAVs
-    separation_hits: Array  # encounters where two UAVs come too close
+    separation_hits: NDArray[Any]  # encounters where two UAVs come too close (a count)
     clearance_deficit: Array  # Σ over samples of (needed - clearance) x spacing, obstacles
-    clearance_hits: Array  # samples inside an obstacle's reach
+    clearance_hits: NDArray[Any]  # samples (or legs) inside an obstacle's reach (a count)
 
     @property
     def safe(self) -> NDArray[np.bool_]:
@@ -119,7 +130,9 @@ def batched_interp(queries: Array, knots: Array, values: Array) -> Array:
     return out.reshape(*queries.shape, -1)
 
 
-def separation_terms(times: Array, positions: Array, traffic: Traffic) -> tuple[Array, Array]:
+def separation_terms(
+    times: Array, positions: Array, traffic: Traffic
+) -> tuple[Array, NDArray[Any]]:
     """Shortfall of every candidate's distance to the other UAVs at their encounters."""
     n = times.shape[0]
     if traffic.slot.size == 0:
@@ -144,7 +157,7 @@ def _fractions(q: int) -> Array:
 
 def clearance_terms(
     waypoints: Array, radius: float, field: ClearanceField, margin: float
-) -> tuple[Array, Array]:
+) -> tuple[Array, NDArray[np.intp]]:
     """Sampled clearance along the legs against blocked cells (and the grid's edge).
 
     A leg whose ends are both clear by more than half its length plus the radius is
@@ -165,7 +178,8 @@ def clearance_terms(
     points = starts[:, None, :] + frac[None, :, None] * legs[rows, cols][:, None, :]
     deficit = np.maximum(radius + margin - field.at(points), 0.0)  # (M, q)
     step = np.maximum(length[rows, cols] / (q - 1), SPACING)
-    depth = np.bincount(rows, weights=(deficit * step[:, None]).sum(axis=1), minlength=n)
+    weights = (deficit * step[:, None]).sum(axis=1)
+    depth = np.asarray(np.bincount(rows, weights=weights, minlength=n), dtype=np.float64)
     hits = np.bincount(rows, weights=(deficit > 0).sum(axis=1), minlength=n)
     return depth, hits.astype(np.intp)
 
@@ -178,13 +192,16 @@ def evaluate_paths(
     radius: float,
     goal: Array,
     traffic: Traffic,
-    field: ClearanceField,
+    field: ClearanceField | ExactClearance,
 ) -> PathTerms:
     """All cost terms of N candidate paths: waypoints (N, P, 2), hover times (N, P)."""
     times, positions = timeline(waypoints, waits, speed)
     steps = np.diff(waypoints, axis=1)
     separation, separation_hits = separation_terms(times, positions, traffic)
-    clearance, clearance_hits = clearance_terms(waypoints, radius, field, 1.0 / field.scale)
+    if isinstance(field, ExactClearance):
+        clearance, clearance_hits = field.leg_terms(waypoints, radius)
+    else:
+        clearance, clearance_hits = clearance_terms(waypoints, radius, field, 1.0 / field.scale)
     return PathTerms(
         length=np.hypot(steps[..., 0], steps[..., 1]).sum(axis=1),
         waiting=waits.sum(axis=1),

@@ -33,22 +33,32 @@ class DetourEncoding:
     base: Array  # (K, 2) interior base points
     max_offset: float = 1.5  # cells
     max_wait: float = 10.0  # seconds per hover
+    # A window of a longer path: flown unchanged (no hover) before `start` and after
+    # `goal`; (B, 2) ending at `start` and (A, 2) beginning at `goal`. None: no window.
+    before: Array | None = None
+    after: Array | None = None
 
     @classmethod
     def around(
-        cls, path: Array, points: int = 10, max_offset: float = 1.5, max_wait: float = 10.0
+        cls,
+        path: Array,
+        points: int = 10,
+        max_offset: float = 1.5,
+        max_wait: float = 10.0,
+        before: Array | None = None,
+        after: Array | None = None,
     ) -> DetourEncoding:
         """Base points on `path` (cells or waypoints): its corners plus about `points` more
         spread along it, at least 2 cells apart, so a straight stretch can still bend."""
         corners = merge_collinear(path)
         total = float(np.hypot(*np.diff(corners, axis=0).T).sum()) if len(corners) > 1 else 0.0
         spacing = max(2.0, total / points)
-        points = [corners[0]]
+        spread = [corners[0]]
         for a, b in itertools.pairwise(corners):
             pieces = max(1, int(np.ceil(np.hypot(*(b - a)) / spacing)))
-            points.extend(a + (b - a) * k / pieces for k in range(1, pieces + 1))
-        points = np.array(points)
-        return cls(points[0], points[-1], points[1:-1], max_offset, max_wait)
+            spread.extend(a + (b - a) * k / pieces for k in range(1, pieces + 1))
+        base = np.array(spread)
+        return cls(base[0], base[-1], base[1:-1], max_offset, max_wait, before, after)
 
     @property
     def dim(self) -> int:
@@ -57,11 +67,26 @@ class DetourEncoding:
     def bounds(self) -> tuple[Array, Array]:
         return -np.ones(self.dim), np.ones(self.dim)
 
+    def _fixed(self) -> list[Array]:
+        return [p for p in (self.before, self.after) if p is not None]
+
     def region(self) -> tuple[Array, Array]:
         """A box that holds every path this encoding can produce."""
-        points = np.vstack([self.start, self.goal, self.base])
+        points = np.vstack([self.start, self.goal, self.base, *self._fixed()])
         reach = self.max_offset if len(self.base) else 0.0
         return points.min(axis=0) - reach, points.max(axis=0) + reach
+
+    def corridor(self) -> tuple[Array, float]:
+        """The base polyline and how far any decoded path can stray from it: each point
+        moves by at most max_offset per axis, and a leg between two moved points stays
+        within the larger of their moves of the leg between the unmoved ones."""
+        parts = [self.start[None], self.base, self.goal[None]]
+        if self.before is not None:
+            parts.insert(0, self.before[:-1])
+        if self.after is not None:
+            parts.append(self.after[1:])
+        polyline = np.vstack(parts)
+        return polyline, float(np.sqrt(2.0) * self.max_offset) if len(self.base) else 0.0
 
     def unchanged(self) -> Array:
         """Genes that decode to the base path with no hovering."""
@@ -70,7 +95,8 @@ class DetourEncoding:
         return genes
 
     def decode(self, genes: Array) -> tuple[Array, Array]:
-        """Waypoints (N, K + 2, 2) and hover times (N, K + 2) of a population (N, dim)."""
+        """Waypoints (N, K + 2, 2) and hover times (N, K + 2) of a population (N, dim);
+        with a window, the fixed points before and after it (without hovers) as well."""
         n, k = genes.shape[0], len(self.base)
         raw = genes[:, : 2 * k].reshape(n, k, 2)
         offset = np.sign(raw) * np.maximum(np.abs(raw) - DEAD_ZONE, 0.0) / (1 - DEAD_ZONE)
@@ -85,6 +111,19 @@ class DetourEncoding:
         )
         waits = np.zeros((n, k + 2))
         waits[:, : k + 1] = self.max_wait * np.maximum(genes[:, 2 * k :], 0.0)
+        if self.before is None and self.after is None:
+            return waypoints, waits
+        head = np.zeros((0, 2)) if self.before is None else self.before[:-1]
+        tail = np.zeros((0, 2)) if self.after is None else self.after[1:]
+        waypoints = np.concatenate(
+            [
+                np.broadcast_to(head, (n, *head.shape)),
+                waypoints,
+                np.broadcast_to(tail, (n, *tail.shape)),
+            ],
+            axis=1,
+        )
+        waits = np.concatenate([np.zeros((n, len(head))), waits, np.zeros((n, len(tail)))], axis=1)
         return waypoints, waits
 
 

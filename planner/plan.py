@@ -33,7 +33,9 @@ class Metrics(_Out):
     seconds: float
     replans: int
     iterations_run: int | None = Field(
-        default=None, description="optimizer iterations run, all runs together"
+        default=None,
+        description="optimizer iterations run, all runs together, and the safe start's "
+        "and re-timing's steps (runs of one step)",
     )
     first_safe_s: float | None = Field(
         default=None, description="seconds until the first plan that passed the exact check"
@@ -69,7 +71,10 @@ class Plan(_Out):
     conflicts: list[dict[str, Any]] = Field(
         default_factory=list, description="what keeps an infeasible plan from being safe"
     )
-    history: list[float] = Field(description="plan cost after every optimizer iteration")
+    history: list[float] = Field(
+        description="plan cost after every optimizer iteration and every safe-start or "
+        "re-timing step"
+    )
 
     def length_ratio(self) -> float:
         """Total length over the sum of each UAV's own shortest path (objects known)."""

@@ -16,6 +16,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.clearance import SQUARE_REACH
 from planner.grid_search import cell_map
 from planner.trajectory import Trajectory
 
@@ -84,20 +85,47 @@ def uav_conflicts(
     trajectories: Mapping[str, Trajectory], radii: Mapping[str, float]
 ) -> tuple[list[Conflict], float]:
     """One conflict per pair of UAVs that ever come closer than the sum of their radii,
-    and the smallest separation of any pair (inf for a single UAV)."""
+    and the smallest separation of any pair (inf for a single UAV).
+
+    Pairs are measured in order of the gap between their bounding boxes, a lower bound
+    on their distance: once that gap is at least the closest separation found and the
+    pair's sum of radii, no later pair can change the answer. The result is the one
+    an all-pairs pass gives, in the same order.
+    """
     ids: Sequence[str] = list(trajectories)
-    found, closest = [], float("inf")
-    for i, a in enumerate(ids):
-        for b in ids[i + 1 :]:
-            need = radii[a] + radii[b]
-            dist, when = closest_approach(trajectories[a], trajectories[b])
-            closest = min(closest, dist)
-            if dist < need:
-                mid = (trajectories[a].at([when])[0] + trajectories[b].at([when])[0]) / 2
-                found.append(
-                    Conflict("uav", (a, b), when, (float(mid[0]), float(mid[1])), dist, need)
-                )
-    return found, closest
+    n = len(ids)
+    if n < 2:
+        return [], float("inf")
+    boxes = np.array(
+        [np.concatenate([t.xy.min(axis=0), t.xy.max(axis=0)]) for t in trajectories.values()]
+    )
+    first, second = np.triu_indices(n, 1)
+    dx = np.maximum(
+        0.0, np.maximum(boxes[second, 0] - boxes[first, 2], boxes[first, 0] - boxes[second, 2])
+    )
+    dy = np.maximum(
+        0.0, np.maximum(boxes[second, 1] - boxes[first, 3], boxes[first, 1] - boxes[second, 3])
+    )
+    gaps = np.hypot(dx, dy)
+    radius = np.array([radii[u] for u in ids])
+    need = radius[first] + radius[second]
+    found: dict[tuple[int, int], Conflict] = {}
+    closest = float("inf")
+    for k in np.argsort(gaps, kind="stable"):
+        if gaps[k] >= closest and gaps[k] >= need.max():
+            break
+        if gaps[k] >= closest and gaps[k] >= need[k]:
+            continue
+        i, j = int(first[k]), int(second[k])
+        a, b = ids[i], ids[j]
+        dist, when = closest_approach(trajectories[a], trajectories[b])
+        closest = min(closest, dist)
+        if dist < need[k]:
+            mid = (trajectories[a].at([when])[0] + trajectories[b].at([when])[0]) / 2
+            found[i, j] = Conflict(
+                "uav", (a, b), when, (float(mid[0]), float(mid[1])), dist, float(need[k])
+            )
+    return [found[key] for key in sorted(found)], closest
 
 
 def cell_conflicts(
@@ -111,6 +139,9 @@ def cell_conflicts(
     hits: dict[Cell, Conflict] = {}
     pts, ts = trajectory.xy, trajectory.times
     segments = [(0, 0)] if len(pts) == 1 else [(k, k + 1) for k in range(len(pts) - 1)]
+    # A hover after a leg stays where the leg ended: nothing the leg did not already see.
+    moved = np.any(pts[1:] != pts[:-1], axis=1) if len(pts) > 1 else np.ones(0, dtype=bool)
+    segments = [(k0, k1) for k0, k1 in segments if k0 == 0 or moved[k0]]
     for k0, k1 in segments:
         cells = _cells_near(pts[k0], pts[k1], radius, blocked)
         if not len(cells):
@@ -133,9 +164,26 @@ def cell_conflicts(
     return list(hits.values())
 
 
+def segment_clearance(
+    p0: NDArray[np.float64],
+    p1: NDArray[np.float64],
+    blocked: NDArray[np.bool_],
+    within: float = 0.5,
+) -> float:
+    """Exact distance from the segment p0-p1 to the nearest blocked cell's square (the
+    test `cell_conflicts` makes), or inf if no blocked cell is within `within` of it."""
+    cells = _cells_near(p0, p1, within, blocked)
+    if not len(cells):
+        return float("inf")
+    return float(_segment_square_distance(p0, p1, cells)[0].min())
+
+
 def _cells_near(
     p0: NDArray[np.float64], p1: NDArray[np.float64], radius: float, blocked: NDArray[np.bool_]
 ) -> NDArray[np.int64]:
+    """Blocked cells whose square may come within `radius` of the segment: those in its
+    bounding box (widened) whose centre is within radius + √2/2 of it (no point of a
+    square is further than √2/2 from its centre, so no cell that matters is dropped)."""
     reach = radius + 0.5
     lo = np.floor(np.minimum(p0, p1) - reach).astype(int)
     hi = np.ceil(np.maximum(p0, p1) + reach).astype(int)
@@ -144,7 +192,15 @@ def _cells_near(
     if np.any(lo > hi):
         return np.empty((0, 2), dtype=np.int64)
     window = blocked[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
-    return np.argwhere(window) + lo
+    cells = np.argwhere(window) + lo
+    if len(cells) > 8:
+        d = p1 - p0
+        length2 = float(d @ d)
+        rel = cells - p0
+        u = np.clip(rel @ d / length2, 0.0, 1.0) if length2 > 0 else np.zeros(len(cells))
+        gap = rel - u[:, None] * d
+        cells = cells[np.einsum("ij,ij->i", gap, gap) <= (radius + SQUARE_REACH) ** 2]
+    return cells
 
 
 def _segment_square_distance(

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+DIGITS = 6  # decimals of a stored plan's times and positions
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,19 @@ class Trajectory:
         inner = self.points[(self.times > lo) & (self.times < hi)]
         ends = np.column_stack([[lo, hi], self.at([lo, hi])])
         return Trajectory(np.vstack([ends[:1], inner, ends[1:]]))
+
+    def quantised(self, speed: float, digits: int = DIGITS) -> Trajectory:
+        """This flight as `to_json` writes it (`digits` decimals), with each time moved up
+        to the grid so that no rounded leg is faster than `speed`: a plan checked in this
+        form is the plan that is stored and flown. Hovers keep their duration."""
+        scale = 10.0**digits
+        xy = np.round(self.xy, digits)
+        legs = np.hypot(*np.diff(xy, axis=0).T)
+        spans = np.maximum(np.diff(self.times), legs / speed)
+        times = [round(float(self.times[0]), digits)]
+        for span in spans:
+            times.append(math.ceil((times[-1] + float(span)) * scale - 1e-6) / scale)
+        return Trajectory(np.column_stack([times, xy]))
 
     def to_json(self) -> list[list[float]]:
         return [

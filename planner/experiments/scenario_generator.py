@@ -72,12 +72,14 @@ def random_scenario(
     uavs: int = 50,
     obstacle_share: float = 0.10,
     objects: int = 5,
+    min_gap: float = 0.0,
 ) -> Scenario:
     """Starts and goals drawn on free cells (warehouse-style traffic, no common centre),
-    random obstacles and non-UAV objects; retries with the same generator until valid."""
+    each at least `min_gap` cells from every other start and goal, random obstacles and
+    non-UAV objects; retries with the same generator until valid (every goal reachable)."""
     rng = np.random.default_rng(seed)
     for _ in range(MAX_TRIES):
-        data = _draw_random(rng, size, uavs, obstacle_share, objects)
+        data = _draw_random(rng, size, uavs, obstacle_share, objects, min_gap)
         try:
             return load_scenario({"name": f"random-{seed}", **data})
         except ValidationError:
@@ -86,14 +88,21 @@ def random_scenario(
 
 
 def _draw_random(
-    rng: np.random.Generator, size: int, uavs: int, obstacle_share: float, objects: int
+    rng: np.random.Generator,
+    size: int,
+    uavs: int,
+    obstacle_share: float,
+    objects: int,
+    min_gap: float = 0.0,
 ) -> dict:
     cells = [(x, y) for x in range(size) for y in range(size)]
     picks = rng.permutation(len(cells))
     n_obstacles = round(obstacle_share * size * size)
-    ends = [cells[i] for i in picks[: 2 * uavs]]
-    obstacles = [cells[i] for i in picks[2 * uavs : 2 * uavs + n_obstacles]]
-    placed = [cells[i] for i in picks[2 * uavs + n_obstacles : 2 * uavs + n_obstacles + objects]]
+    chosen = _spread(np.array(cells)[picks], 2 * uavs, min_gap)
+    ends = [cells[picks[k]] for k in chosen]
+    rest = np.delete(picks, chosen)
+    obstacles = [cells[i] for i in rest[:n_obstacles]]
+    placed = [cells[i] for i in rest[n_obstacles : n_obstacles + objects]]
     return {
         "grid": {"width": size, "height": size, "cell_size_m": 10.0},
         "uavs": [
@@ -107,3 +116,17 @@ def _draw_random(
         "obstacles": [list(map(int, c)) for c in obstacles],
         "non_uav_objects": [list(map(int, c)) for c in placed],
     }
+
+
+def _spread(candidates: np.ndarray, count: int, min_gap: float) -> list[int]:
+    """Indices of the first `count` candidates (in order) that are each at least `min_gap`
+    from every one taken before (all of the first `count` when the gap is 0)."""
+    if min_gap <= 0:
+        return list(range(min(count, len(candidates))))
+    taken: list[int] = []
+    for k, cell in enumerate(candidates):
+        if len(taken) == count:
+            break
+        if not taken or np.min(np.hypot(*(candidates[taken] - cell).T)) >= min_gap:
+            taken.append(k)
+    return taken

@@ -243,7 +243,8 @@ def plan_prioritized(
     first = list(order) if order is not None else ids
     if sorted(first) != sorted(ids):
         raise ValueError(f"order {first} is not a permutation of the UAV ids {ids}")
-    notes, total = [], 0
+    notes: list[str] = []
+    total = 0
     for attempt, current in enumerate(_orders(first, restarts, seed)):
         outcome, expansions = plan_order(scenario, current, limits)
         total += expansions

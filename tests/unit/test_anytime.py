@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from planner import budget as budget_clock
 from planner.budget import Budget
 from planner.cases import load_case
 from planner.conflict_table import ConflictTable
@@ -16,23 +17,55 @@ from planner.run_stop import RunStop
 from planner.safety import check_plan, uav_conflicts
 from planner.trajectory import Trajectory
 
-OVERHEAD_S = 0.5  # what the planner may take past its budget: one iteration, the final check
-SLACK_S = 1.0  # for a loaded 2-core machine
+OVERHEAD_S = 0.25  # past its budget: the last step before a look at the clock, the final check
 
 
-def test_the_time_budget_is_honoured_on_fifty_uavs() -> None:
-    scenario = random_scenario(3, size=50, uavs=50)
-    started = time.perf_counter()
-    result = plan(scenario, PlannerSettings(time_budget_s=1.0))
-    assert time.perf_counter() - started < 1.0 + OVERHEAD_S + SLACK_S
-    assert result.stop_reason == "budget" and result.time_budget_s == 1.0
-    report = check_plan(
-        {u.id: Trajectory(np.array(u.trajectory)) for u in result.uavs},
-        {u.id: u.radius for u in scenario.uavs},
-        scenario.blocked(),
-        scenario.object_cells(),
-    )
-    assert result.feasible == report.safe  # never called safe unless the check says so
+@pytest.fixture
+def cpu_clock(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Budgets run on this process's CPU time: what the planner does within its budget,
+    whatever else a loaded machine is doing."""
+    monkeypatch.setattr(budget_clock, "CLOCK", time.process_time)
+
+
+def _fleet(name: str):
+    return {
+        "crossing 50 on 64x64": lambda: crossing_scenario(0, size=64, uavs=50, objects=5),
+        "random 50 on 200x200": lambda: random_scenario(0, size=200, uavs=50, objects=0),
+        "the limits, 100 on 500x500": lambda: random_scenario(
+            0, size=500, uavs=100, objects=0, min_gap=2.0
+        ),
+    }[name]()
+
+
+@pytest.mark.parametrize("budget", [0.2, 1.0])
+@pytest.mark.parametrize(
+    "name", ["crossing 50 on 64x64", "random 50 on 200x200", "the limits, 100 on 500x500"]
+)
+def test_a_time_budget_always_returns_within_it(cpu_clock, name: str, budget: float) -> None:
+    scenario = _fleet(name)
+    started = time.process_time()
+    result = plan(scenario, PlannerSettings(time_budget_s=budget))
+    assert time.process_time() - started < budget + OVERHEAD_S
+    assert result.time_budget_s == budget
+    assert result.stop_reason == "budget" or result.metrics.seconds < budget
+    if result.feasible:  # never called safe unless the check says so
+        report = check_plan(
+            {u.id: Trajectory(np.array(u.trajectory)) for u in result.uavs},
+            {u.id: u.radius for u in scenario.uavs},
+            scenario.blocked(),
+            scenario.object_cells(),
+        )
+        assert report.safe
+    else:  # refused: it says why
+        assert result.conflicts and all(c["message"] for c in result.conflicts)
+
+
+def test_the_limits_are_planned_or_refused_with_a_clear_message(cpu_clock) -> None:
+    scenario = _fleet("the limits, 100 on 500x500")
+    refused = plan(scenario, PlannerSettings(time_budget_s=0.05))
+    assert not refused.feasible and refused.stop_reason == "budget"
+    assert "time budget of 0.05 s ran out" in refused.conflicts[0]["message"]
+    assert len(refused.uavs) == 100 and refused.metrics.seconds < 0.05 + OVERHEAD_S
 
 
 def test_an_unsolved_fleet_at_the_deadline_is_refused_with_its_conflicts() -> None:
@@ -98,10 +131,13 @@ def test_a_run_converges_after_patience_and_sooner_once_safe() -> None:
     assert not any(RunStop(Budget(None), patience=None)(1.0) for _ in range(100))
 
 
-def test_a_run_stops_at_the_deadline() -> None:
+def test_a_run_stops_at_the_deadline(monkeypatch: pytest.MonkeyPatch) -> None:
+    now = [100.0]
+    monkeypatch.setattr(budget_clock, "CLOCK", lambda: now[0])
     budget = Budget(0.01)
     stop = RunStop(budget, patience=None)
-    time.sleep(0.02)
+    assert not stop(1.0)
+    now[0] += 0.02  # the clock moves on; nothing waits for it
     assert stop(1.0) and stop.reason == "budget" and budget.percent() == 100.0
 
 
@@ -178,11 +214,13 @@ def test_a_hover_probe_lets_a_uav_wait_for_another_to_pass() -> None:
 def test_the_fleet_benchmark_writes_its_tables(tmp_path, monkeypatch) -> None:
     from planner.experiments import fleet_bench
 
-    small = [fleet_bench.Family("crossing, 6 UAVs", lambda s: crossing_scenario(s), False)]
+    small = [fleet_bench.Family("crossing, 6 UAVs", lambda s: crossing_scenario(s), 4, 0.25)]
     monkeypatch.setattr(fleet_bench, "FAMILIES", small)
-    config = fleet_bench.FleetConfig(budget=0.5, seeds_small=2)
+    config = fleet_bench.FleetConfig(budget=0.5, seed_scale=0.5)
     text = fleet_bench.fleet_section(config, tmp_path / "fleet.csv")
     assert "### crossing, 6 UAVs (seeds 0..1)" in text and "MVO qos (ours)" in text
     assert "LaCAM (pymapf), 4-connected" in text and "prioritized (pymapf)" in text
+    summary = next(line for line in text.splitlines() if line.startswith("| crossing, 6 UAVs |"))
+    assert summary.count("|") == 12 and "| 0.25 |" in summary  # the issue's target column
     rows = (tmp_path / "fleet.csv").read_text().splitlines()
-    assert len(rows) == 1 + 2 * 4  # header, then 2 seeds x 4 planners
+    assert len(rows) == 1 + 2 * 3  # header, then 2 seeds x 3 planners
