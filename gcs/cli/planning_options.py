@@ -39,6 +39,14 @@ def add_planning_arguments(parser: argparse.ArgumentParser, iterations: int = 10
         metavar="SECONDS",
         help="wall time for the plan (default 5); 0: none, iterations only (deterministic)",
     )
+    parser.add_argument(
+        "--patience",
+        type=int,
+        default=100,
+        metavar="ITERATIONS",
+        help="a run stops after this many iterations without gain (default 100); "
+        "0: every run does all of its iterations",
+    )
 
 
 def planner_settings(args: argparse.Namespace) -> PlannerSettings:
@@ -49,6 +57,7 @@ def planner_settings(args: argparse.Namespace) -> PlannerSettings:
         population=args.population,
         iterations=args.iterations,
         time_budget_s=args.time_budget if args.time_budget > 0 else None,
+        patience=args.patience if args.patience > 0 else None,
     )
 
 

@@ -139,4 +139,5 @@ def _settings_json(settings: PlannerSettings) -> dict[str, Any]:
         "population": settings.population,
         "iterations": settings.iterations,
         "time_budget_s": settings.time_budget_s,
+        "patience": settings.patience,
     }

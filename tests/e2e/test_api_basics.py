@@ -12,6 +12,15 @@ from tests.e2e.flying import wait_for
 from tests.service_process import ServiceProcess
 
 CASE_VI = load_case("case-6").model_dump(mode="json")
+# The paper's flow with every iteration run: minutes of work, so it is still running
+# whenever the test looks (the anytime default ends case VI within a tenth of a second).
+LONG_PLAN = {
+    "objective": "paper",
+    "iterations": 20_000,
+    "population": 60,
+    "time_budget_s": None,
+    "patience": None,
+}
 
 
 def _wait_job(client: httpx.Client, job_id: str, states: set[str], timeout: float = 60) -> dict:
@@ -57,7 +66,7 @@ def test_a_long_plan_is_a_job_that_reports_progress_and_can_be_cancelled(
         sid = client.post("/scenarios", json=CASE_VI).json()["id"]
         answer = client.post(
             f"/scenarios/{sid}/plans",
-            json={"iterations": 20_000, "population": 60, "wait_s": 0, "time_budget_s": None},
+            json=LONG_PLAN | {"wait_s": 0},
         )
         assert answer.status_code == 202
         assert answer.headers["location"] == f"/jobs/{answer.json()['id']}"
@@ -129,9 +138,7 @@ def test_everything_survives_a_restart_and_a_running_job_is_marked_interrupted(
     with service.client() as client:
         sid = client.post("/scenarios", json=CASE_VI).json()["id"]
         plan = client.post(f"/scenarios/{sid}/plans", json={"iterations": 50, "wait_s": 30})
-        long = client.post(
-            f"/scenarios/{sid}/plans", json={"iterations": 50_000, "population": 40, "wait_s": 0}
-        ).json()
+        long = client.post(f"/scenarios/{sid}/plans", json=LONG_PLAN | {"wait_s": 0}).json()
         _wait_job(client, long["id"], {"running"})
     service.kill()
     service.start()

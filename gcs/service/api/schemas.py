@@ -72,7 +72,15 @@ class PlanRequest(_In):
         gt=0,
         le=600,
         description="wall seconds for the whole plan: a safe plan as early as possible, "
-        "improved while the budget lasts; null: run every iteration (deterministic)",
+        "improved while the budget lasts; null: no time bound, the iterations and "
+        "`patience` bound it and the same seed gives the same plan",
+    )
+    patience: int | None = Field(
+        default=100,
+        ge=1,
+        le=100_000,
+        description="an optimizer run stops after this many iterations without gain; "
+        "null: every run does all of its iterations (as the paper's Algorithm 1)",
     )
     wait_s: float | None = Field(
         default=None,

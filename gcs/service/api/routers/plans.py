@@ -91,6 +91,7 @@ async def request_plan(
         population=request.population,
         iterations=request.iterations,
         time_budget_s=request.time_budget_s,
+        patience=request.patience,
     )
     wait = settings.inline_plan_wait_s if request.wait_s is None else request.wait_s
     job = await planning.request(scenario_id, planner_settings, wait)
