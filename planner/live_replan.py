@@ -68,14 +68,15 @@ class LiveReplan:
 
     now: float
     touched: list[str]  # UAVs whose remaining path the object touches, in replanning order
-    changed: dict[str, list[list[float]]]  # new trajectories, from the position at `now`
+    changed: dict[str, Trajectory]  # new trajectories, from the position at `now`
     unresolved: list[str]  # touched UAVs that keep their old trajectory: no safe path
     feasible: bool  # the exact check finds nothing on the whole remaining fleet
     conflicts: list[dict]  # what it found (Conflict.to_json(), times in plan seconds)
     explanation: str  # one sentence for the operator
 
     def to_json(self) -> dict:
-        return dataclasses.asdict(self)
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        return fields | {"changed": {u: t.to_json() for u, t in self.changed.items()}}
 
 
 @dataclass(frozen=True)
@@ -177,7 +178,7 @@ def replan_live(
     return LiveReplan(
         now=now,
         touched=touched,
-        changed={u: _shifted(t, now).to_json() for u, t in changed.items()},
+        changed={u: _shifted(t, now) for u, t in changed.items()},
         unresolved=[u for u in touched if u in failed],
         feasible=not conflicts,
         conflicts=[c.to_json() for c in conflicts],

@@ -20,6 +20,7 @@ from gcs.mission.geodesy import GridFrame
 from planner.live_replan import LiveReplan, NewObject, replan_live
 from planner.plan import Plan, PlannedUAV
 from planner.scenario import Scenario
+from planner.trajectory import Trajectory
 
 
 @dataclass(frozen=True)
@@ -57,10 +58,8 @@ async def replan_flight(
     speeds = {u.id: u.speed for u in scenario.uavs}
     missions: dict[str, Mission] = {}
     for uav, trajectory in result.changed.items():
-        relative = np.asarray(trajectory, dtype=float)
-        relative[:, 0] -= relative[0, 0]  # the new mission's t = 0 is `now`
         missions[uav] = build_mission(
-            relative,
+            trajectory.points,
             speeds[uav],
             frame,
             fleet.autopilot(uav),
@@ -90,12 +89,13 @@ def _spliced(plan: Plan, result: LiveReplan, uploads: dict[str, VehicleOutcome[N
         if outcome is None or not outcome.ok:
             uavs.append(u)
             continue
-        new = result.changed[u.id]
-        before = [p for p in u.trajectory if p[0] < new[0][0]]
+        new = result.changed[u.id].points
+        old = np.asarray(u.trajectory, dtype=float)
+        flown = Trajectory(np.vstack([old[old[:, 0] < new[0, 0]], new]))
         uavs.append(
             u.model_copy(
                 update={
-                    "trajectory": before + new,
+                    "trajectory": flown.to_json(),
                     "replanned": [*u.replanned, "non-UAV object reported in flight"],
                 }
             )

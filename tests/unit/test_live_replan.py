@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from numpy.typing import ArrayLike
 
 from planner.cases import load_case
 from planner.experiments.scenario_generator import crossing_scenario
@@ -31,7 +32,7 @@ def planned(name: str) -> tuple[Scenario, Plan]:
     return scenario, result
 
 
-def track(points: list[list[float]], t: np.ndarray) -> np.ndarray:
+def track(points: ArrayLike, t: np.ndarray) -> np.ndarray:
     """Positions at `t`, NaN when not airborne."""
     p = np.array(points)
     out = np.column_stack([np.interp(t, p[:, 0], p[:, 1]), np.interp(t, p[:, 0], p[:, 2])])
@@ -44,7 +45,7 @@ def square_distance(xy: np.ndarray, cell: tuple[int, int]) -> np.ndarray:
     return np.hypot(off[:, 0], off[:, 1])
 
 
-def cells_touched(points: list[list[float]], radius: float, t0: float, t1: float) -> set:
+def cells_touched(points: ArrayLike, radius: float, t0: float, t1: float) -> set:
     """Cells whose square the disc enters while flying during [t0, t1]."""
     t = np.append(np.arange(t0, min(t1, points[-1][0]), STEP), min(t1, points[-1][0]))
     xy = track(points, t)
@@ -61,7 +62,10 @@ def cells_touched(points: list[list[float]], radius: float, t0: float, t1: float
 
 def fleet_after(result: Plan, live: LiveReplan) -> dict[str, list[list[float]]]:
     """Every flight as it now stands (the changed ones start at `now`)."""
-    return {u.id: live.changed.get(u.id, u.trajectory) for u in result.uavs}
+    return {
+        u.id: live.changed[u.id].to_json() if u.id in live.changed else u.trajectory
+        for u in result.uavs
+    }
 
 
 def judge(
@@ -93,7 +97,7 @@ def judge(
 def assert_replanned_from_where_it_is(
     scenario: Scenario, result: Plan, live: LiveReplan, uav: str, at: np.ndarray
 ) -> None:
-    new = np.array(live.changed[uav])
+    new = live.changed[uav].points
     spec = next(u for u in scenario.uavs if u.id == uav)
     assert new[0, 0] == pytest.approx(live.now, abs=1e-6)
     assert new[0, 1:] == pytest.approx(at, abs=1e-6)
@@ -140,7 +144,7 @@ def test_object_on_one_remaining_path_changes_only_that_uav(name: str) -> None:
     assert live.touched == [uav] and list(live.changed) == [uav] and live.unresolved == []
     at = track(next(u.trajectory for u in result.uavs if u.id == uav), np.array([now]))[0]
     assert_replanned_from_where_it_is(scenario, result, live, uav, at)
-    assert cell not in cells_touched(live.changed[uav], 0.3, now, math.inf)
+    assert cell not in cells_touched(live.changed[uav].points, 0.3, now, math.inf)
     assert live.feasible and live.conflicts == []
     assert judge(scenario, result, live, [obj]) == []
     assert uav in live.explanation
@@ -218,9 +222,9 @@ def test_a_uav_waits_for_an_object_with_a_window_to_go() -> None:
     live = replan_live(scenario, result, obj, now=1.0, settings=SETTINGS)
     assert live.feasible and list(live.changed) == ["east"]
     assert judge(scenario, result, live, [obj]) == []
-    new = np.array(live.changed["east"])
+    new = live.changed["east"].points
     t = np.arange(1.0, new[-1, 0], STEP)
-    entered = t[square_distance(track(live.changed["east"], t), (4, 0)) < 0.3]
+    entered = t[square_distance(track(live.changed["east"].points, t), (4, 0)) < 0.3]
     assert entered.min() > 5.0
 
 
@@ -238,7 +242,7 @@ def test_an_object_on_a_goal_for_a_while_makes_the_uav_hover_until_it_goes() -> 
     obj = NewObject(uav.goal, (0.0, 12.0))
     live = replan_live(scenario, result, obj, now=2.0, settings=SETTINGS)
     assert live.feasible and list(live.changed) == [uav.id]
-    assert live.changed[uav.id][-1][0] > 12.0
+    assert live.changed[uav.id].end_time > 12.0
     assert judge(scenario, result, live, [obj]) == []
 
 
@@ -288,7 +292,7 @@ def test_same_seed_same_answer() -> None:
     scenario, result = planned("case-6")
     _, cell = a_cell_only_on(scenario, result, 1.0)
     a, b = (replan_live(scenario, result, NewObject(cell), now=1.0) for _ in range(2))
-    assert a == b
+    assert a.to_json() == b.to_json()
 
 
 @pytest.mark.parametrize(
@@ -353,8 +357,9 @@ def test_whatever_comes_back_is_safe_or_says_it_is_not(
         settings=PlannerSettings(seed=seed, population=15, iterations=80),
     )
     assert set(live.changed) <= set(live.touched) and set(live.unresolved) <= set(live.touched)
-    for uav, points in live.changed.items():
+    for uav, new in live.changed.items():
         old = next(u.trajectory for u in result.uavs if u.id == uav)
+        points = new.points
         assert points[0][0] == pytest.approx(now, abs=1e-6)
         assert points[0][1:] == pytest.approx(track(old, np.array([now]))[0].tolist(), abs=1e-6)
     if live.feasible:

@@ -36,6 +36,7 @@ from gcs.service.vehicle_registry import VehicleRegistry
 from planner.live_replan import NewObject
 from planner.plan import Plan
 from planner.scenario import Scenario
+from planner.trajectory import Trajectory
 
 log = logging.getLogger("mvo_gcs.flights")
 F = FlightState
@@ -297,7 +298,7 @@ class FlightService:
             "feasible": result.feasible,
             "explanation": result.explanation,
             "paths": {  # in the plan's own time, as GET /plans/{id} gives it
-                uav: [[t / pace, x, y] for t, x, y in trajectory]
+                uav: Trajectory(trajectory.points / (pace, 1.0, 1.0)).to_json()
                 for uav, trajectory in result.changed.items()
                 if outcome.uploads.get(uav) is not None and outcome.uploads[uav].ok
             },
