@@ -7,6 +7,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator
 
+from gcs.mission.build import DEFAULT_ALTITUDE_M
+from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, TURN_RADIUS_M
 from gcs.service.states import JobState
 from planner.optimizers import ALGORITHMS
 from planner.plan import Metrics, Plan
@@ -30,6 +32,24 @@ class _In(BaseModel):
 
 class _Out(BaseModel):
     model_config = ConfigDict(from_attributes=True)
+
+
+class MissionShape(BaseModel):
+    """How a plan becomes missions: the same options for a flight and for mission files,
+    so that a file flies as the service would fly it."""
+
+    altitude_m: float = Field(default=DEFAULT_ALTITUDE_M, gt=0, le=1000, description="above home")
+    finish: Literal["land", "rtl"] = "land"
+    max_speed_m_s: float = Field(
+        default=DEFAULT_MAX_SPEED_M_S,
+        gt=0,
+        le=50,
+        description="fly the plan no faster than this: the whole plan is slowed by one factor, "
+        "keeping every relative position, so acceleration lag stays small",
+    )
+    turn_radius_m: float = Field(
+        default=TURN_RADIUS_M, ge=0, le=50, description="waypoint acceptance radius"
+    )
 
 
 class ScenarioOut(_Out):

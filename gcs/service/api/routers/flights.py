@@ -15,9 +15,7 @@ from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.mavlink.mission_item import Mission
-from gcs.mission.build import DEFAULT_ALTITUDE_M
 from gcs.mission.files import parse_plan, plan_text, waypoints_text
-from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, TURN_RADIUS_M
 from gcs.service.api.deps import (
     FlightRecordsDep,
     FlightsDep,
@@ -25,7 +23,7 @@ from gcs.service.api.deps import (
     get_services,
     mutating,
 )
-from gcs.service.api.schemas import MAX_PAGE, Problem, UtcDatetime
+from gcs.service.api.schemas import MAX_PAGE, MissionShape, Problem, UtcDatetime
 from gcs.service.flights.active import VehicleAnswer
 from gcs.service.states import FlightState
 from gcs.service.storage import NotFound
@@ -66,25 +64,13 @@ FLIGHT_OPERATIONS = (
 )
 
 
-class FlightIn(BaseModel):
+class FlightIn(MissionShape):
     model_config = ConfigDict(extra="forbid", strict=True)
 
     plan_id: str = Field(max_length=40)
     bindings: dict[str, str] = Field(
         description="plan UAV id -> vehicle id, one vehicle per UAV",
         examples=[{"uav1": "3fa1b2c4d5e6"}],
-    )
-    altitude_m: float = Field(default=DEFAULT_ALTITUDE_M, gt=0, le=1000, description="above home")
-    finish: Literal["land", "rtl"] = "land"
-    max_speed_m_s: float = Field(
-        default=DEFAULT_MAX_SPEED_M_S,
-        gt=0,
-        le=50,
-        description="fly the plan no faster than this: the whole plan is slowed by one factor, "
-        "keeping every relative position, so acceleration lag stays small",
-    )
-    turn_radius_m: float = Field(
-        default=TURN_RADIUS_M, ge=0, le=50, description="waypoint acceptance radius"
     )
 
 

@@ -14,14 +14,13 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query
 from fastapi.responses import PlainTextResponse
-from pydantic import BaseModel, Field
+from pydantic import BaseModel
 
 from gcs.mavlink.mission_item import Autopilot, Mission
-from gcs.mission.build import DEFAULT_ALTITUDE_M
 from gcs.mission.files import plan_text, waypoints_text
-from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, TURN_RADIUS_M, paced_flight
+from gcs.mission.pacing import paced_flight
 from gcs.service.api.deps import PlansDep, ScenariosDep
-from gcs.service.api.schemas import Problem
+from gcs.service.api.schemas import MissionShape, Problem
 from gcs.service.storage import NotFound
 from planner.plan import Plan
 from planner.scenario import Scenario
@@ -51,19 +50,8 @@ class MissionOut(BaseModel):
     items: list[MissionItemOut]
 
 
-class MissionOptions(BaseModel):
+class MissionOptions(MissionShape):
     autopilot: AutopilotName = "ardupilot"
-    altitude_m: float = Field(default=DEFAULT_ALTITUDE_M, gt=0, le=1000, description="above home")
-    finish: Literal["land", "rtl"] = "land"
-    max_speed_m_s: float = Field(
-        default=DEFAULT_MAX_SPEED_M_S,
-        gt=0,
-        le=50,
-        description="no leg faster than this: the whole plan is slowed by one factor",
-    )
-    turn_radius_m: float = Field(
-        default=TURN_RADIUS_M, ge=0, le=50, description="waypoint acceptance radius"
-    )
 
 
 Options = Annotated[MissionOptions, Query()]
