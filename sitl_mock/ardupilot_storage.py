@@ -16,18 +16,8 @@ from dataclasses import replace
 import numpy as np
 
 from .codec import mavlink
-from .mission_item import MissionItem
+from .mission_item import NAV_COMMANDS, MissionItem
 
-LOCATION_COMMANDS = frozenset(
-    {
-        mavlink.MAV_CMD_NAV_WAYPOINT,
-        mavlink.MAV_CMD_NAV_LOITER_UNLIM,
-        mavlink.MAV_CMD_NAV_LOITER_TIME,
-        mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-        mavlink.MAV_CMD_NAV_LAND,
-        mavlink.MAV_CMD_NAV_TAKEOFF,
-    }
-)
 """Commands whose position ArduPilot keeps (`AP_Mission::stored_in_location`)."""
 NAN_PARAM4_ALLOWED = frozenset(
     {
@@ -63,7 +53,7 @@ def refusal(item: MissionItem) -> int | None:
             return INVALID_PARAM[index]
     if item.command == mavlink.MAV_CMD_NAV_WAYPOINT and not 0 <= item.param1 <= UINT16_MAX:
         return mavlink.MAV_MISSION_INVALID_PARAM1
-    if item.command not in LOCATION_COMMANDS:
+    if item.command not in NAV_COMMANDS:
         return None
     if not -90e7 <= item.x <= 90e7:
         return mavlink.MAV_MISSION_INVALID_PARAM5_X
@@ -79,7 +69,7 @@ def refusal(item: MissionItem) -> int | None:
 def stored(item: MissionItem) -> MissionItem:
     """The item as a download returns it once ArduPilot has stored it."""
     params = _stored_params(item)
-    if item.command in LOCATION_COMMANDS:
+    if item.command in NAV_COMMANDS:
         frame = (
             mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
             if item.frame in RELATIVE_FRAMES

@@ -17,6 +17,17 @@ GLOBAL_FRAMES = frozenset(
 )
 AMSL_FRAMES = frozenset({mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_FRAME_GLOBAL_INT})
 SUPPORTED_FRAMES = GLOBAL_FRAMES | {mavlink.MAV_FRAME_MISSION}
+NAV_COMMANDS = frozenset(
+    {
+        mavlink.MAV_CMD_NAV_WAYPOINT,
+        mavlink.MAV_CMD_NAV_LOITER_UNLIM,
+        mavlink.MAV_CMD_NAV_LOITER_TIME,
+        mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
+        mavlink.MAV_CMD_NAV_LAND,
+        mavlink.MAV_CMD_NAV_TAKEOFF,
+    }
+)
+"""The navigation commands the mock flies; each has a location (RTL: home)."""
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from typing import Protocol
 from .codec import mavlink
 from .kinematics import Body, NavLimits
 from .manoeuvres import Climb, FlyTo, Hold, Land, Manoeuvre, Sequence, land_at, return_home
-from .mission_item import AMSL_FRAMES, GLOBAL_FRAMES, MissionItem
+from .mission_item import AMSL_FRAMES, GLOBAL_FRAMES, NAV_COMMANDS, MissionItem
 from .mission_store import MissionStore
 
 NAV_WAYPOINT = mavlink.MAV_CMD_NAV_WAYPOINT
@@ -25,9 +25,6 @@ NAV_RTL = mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH
 NAV_LAND = mavlink.MAV_CMD_NAV_LAND
 NAV_TAKEOFF = mavlink.MAV_CMD_NAV_TAKEOFF
 DO_CHANGE_SPEED = mavlink.MAV_CMD_DO_CHANGE_SPEED
-NAV_COMMANDS = frozenset(
-    {NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME, NAV_RTL, NAV_LAND, NAV_TAKEOFF}
-)
 PASS_THROUGH_TARGETS = frozenset({NAV_WAYPOINT, NAV_LOITER_UNLIM, NAV_LOITER_TIME})
 
 

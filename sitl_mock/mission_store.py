@@ -16,7 +16,7 @@ from typing import ClassVar, Protocol
 
 from .codec import Message, Sender, mavlink
 from .flavour import Flavour
-from .mission_item import SUPPORTED_FRAMES, MissionItem, same_item
+from .mission_item import NAV_COMMANDS, SUPPORTED_FRAMES, MissionItem, same_item
 
 MISSION, FENCE, RALLY, ALL = (
     mavlink.MAV_MISSION_TYPE_MISSION,
@@ -26,17 +26,7 @@ MISSION, FENCE, RALLY, ALL = (
 )
 
 SUPPORTED_COMMANDS: dict[int, frozenset[int]] = {
-    MISSION: frozenset(
-        {
-            mavlink.MAV_CMD_NAV_WAYPOINT,
-            mavlink.MAV_CMD_NAV_LOITER_UNLIM,
-            mavlink.MAV_CMD_NAV_LOITER_TIME,
-            mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-            mavlink.MAV_CMD_NAV_LAND,
-            mavlink.MAV_CMD_NAV_TAKEOFF,
-            mavlink.MAV_CMD_DO_CHANGE_SPEED,
-        }
-    ),
+    MISSION: NAV_COMMANDS | {mavlink.MAV_CMD_DO_CHANGE_SPEED},
     FENCE: frozenset(
         {
             mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,

@@ -14,20 +14,10 @@ from collections.abc import Callable
 
 from .codec import Message, mavlink
 from .flavour import Flavour
-from .mission_item import MissionItem
+from .mission_item import NAV_COMMANDS, MissionItem
 from .readiness import PREARM_PERIOD_S
 
 PX4_REACHED_REPEAT_S = 1.0
-NAV_COMMANDS = frozenset(
-    {
-        mavlink.MAV_CMD_NAV_WAYPOINT,
-        mavlink.MAV_CMD_NAV_LOITER_UNLIM,
-        mavlink.MAV_CMD_NAV_LOITER_TIME,
-        mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH,
-        mavlink.MAV_CMD_NAV_LAND,
-        mavlink.MAV_CMD_NAV_TAKEOFF,
-    }
-)
 ITEM_NAMES = {
     mavlink.MAV_CMD_NAV_WAYPOINT: "WP",
     mavlink.MAV_CMD_NAV_LOITER_UNLIM: "LoitUnlim",
