@@ -276,6 +276,9 @@ def test_after_a_restart_the_flight_is_interrupted_and_abort_still_works(
             with service.client() as client:
                 flight = Flight.make(client, sim, "case-6")
                 flight.fly()
+                # Held, so that they are still up however long the restart takes on a busy
+                # machine (flying on, they may land first; the flight then rightly ends).
+                assert flight.post("pause").is_success
             service.kill()  # as a crash would: no clean shutdown
             service.start()
             with service.client() as client:
