@@ -47,7 +47,6 @@ def test_a_time_budget_always_returns_within_it(cpu_clock, name: str, budget: fl
     result = plan(scenario, PlannerSettings(time_budget_s=budget))
     assert time.process_time() - started < budget + OVERHEAD_S
     assert result.time_budget_s == budget
-    assert result.stop_reason == "budget" or result.metrics.seconds < budget
     if result.feasible:  # never called safe unless the check says so
         report = check_plan(
             {u.id: Trajectory(np.array(u.trajectory)) for u in result.uavs},
