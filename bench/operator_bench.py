@@ -4,7 +4,8 @@
    request is sent to the moment every mock vehicle's own state (the simulator's truth,
    polled every millisecond) shows LAND. States: uploading (a slow link makes the upload
    last seconds), starting (arming refused "not ready" for ever), flying, paused, and
-   interrupted after the service was killed and restarted mid-flight.
+   interrupted after the service was killed and restarted mid-flight (the fleet held
+   first, so that it is still up however long the restart takes).
 2. The event loop's stalls while 20 mock vehicles fly and every event is stored: the
    service's own loop-lag probe (a 10 ms timer, `mvo_gcs_event_loop_lag_seconds`), read
    from /metrics before and after the flight.
@@ -87,6 +88,7 @@ def after_restart(tmp: Path) -> float:
             with service.client() as client:
                 flight = Flight.make(client, sim, "case-6")
                 flight.fly()
+                flight.post("pause")  # still up however long the restart takes
             service.kill()
             service.start()
             with service.client() as client:

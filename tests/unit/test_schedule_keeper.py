@@ -52,6 +52,20 @@ def test_vehicles_ahead_of_a_laggard_wait_and_resume_once_it_caught_up() -> None
     assert later.resume == {"b"} and not later.pause
 
 
+def test_two_vehicles_about_to_meet_keep_one_clock_whatever_the_fleets_laggard_does() -> None:
+    """The bug this fixes: only vehicles near the one furthest behind ever waited, so two
+    others crossing far from it drifted apart in time (3.9 s on ten ArduCopter SITL)."""
+    far = 0.01  # degrees: over a kilometre from the others
+    fleet = [
+        progress("laggard", 40.0, lat=far, lon=far),
+        progress("ahead", 34.9),
+        progress("behind", 38.8),
+    ]
+    decision = decide(fleet, Holds(), KeepingPolicy(meet_distance_m=30.0))
+    assert decision.pause == {"ahead"}
+    assert decision.laggard == "behind" and decision.laggard_lag_s == 38.8
+
+
 def test_a_finished_vehicle_neither_waits_nor_makes_others_wait() -> None:
     decision = decide(
         [progress("a", 9.0, finished=True), progress("b", 0.0)],
