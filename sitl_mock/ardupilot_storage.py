@@ -18,7 +18,6 @@ import numpy as np
 from .codec import mavlink
 from .mission_item import NAV_COMMANDS, MissionItem
 
-"""Commands whose position ArduPilot keeps (`AP_Mission::stored_in_location`)."""
 NAN_PARAM4_ALLOWED = frozenset(
     {
         mavlink.MAV_CMD_NAV_WAYPOINT,
@@ -53,7 +52,7 @@ def refusal(item: MissionItem) -> int | None:
             return INVALID_PARAM[index]
     if item.command == mavlink.MAV_CMD_NAV_WAYPOINT and not 0 <= item.param1 <= UINT16_MAX:
         return mavlink.MAV_MISSION_INVALID_PARAM1
-    if item.command not in NAV_COMMANDS:
+    if item.command not in NAV_COMMANDS:  # no position kept (`AP_Mission::stored_in_location`)
         return None
     if not -90e7 <= item.x <= 90e7:
         return mavlink.MAV_MISSION_INVALID_PARAM5_X
