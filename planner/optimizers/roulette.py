@@ -16,8 +16,8 @@ def roulette_wheel(
     the negated costs) the cumulative sum only falls, so only index 0 can qualify:
     the white hole is then always the best universe, as in the reference code.
     """
-    acc = np.cumsum(weights)
     with np.errstate(invalid="ignore", over="ignore"):  # an infinite weight (ALO: 1 / 0)
+        acc = np.cumsum(weights)
         steps = np.diff(acc)
         if np.all(steps <= 0):
             return np.zeros(size, dtype=np.intp)
