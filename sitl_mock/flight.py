@@ -309,11 +309,12 @@ class FlightController:
         elif not self._airborne and self.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
             if self._idle_since is None:
                 self._idle_since = now
-            elif now - self._idle_since >= self._disarm_delay():
+            elif 0 < self._disarm_delay() <= now - self._idle_since:
                 self._say(mavlink.MAV_SEVERITY_INFO, "Disarming motors")
                 self._disarm()
 
     def _disarm_delay(self) -> float:
+        """Seconds an armed vehicle may idle on the ground; 0 or less: never disarms."""
         for name in ("DISARM_DELAY", "COM_DISARM_PRFLT"):
             if name in self.params:
                 return self.params.get(name)

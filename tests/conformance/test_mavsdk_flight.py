@@ -27,6 +27,7 @@ import pymap3d
 import pytest
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
+from mavsdk.asyncio.plugins.param import ParamAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from mavsdk.plugins.mission_raw import MissionItem
 from mavsdk.plugins.telemetry import FlightMode
@@ -274,7 +275,17 @@ async def test_mission_upload_download_clear(vehicle: Vehicle) -> None:
 
 async def arm_and_start(vehicle: Vehicle) -> None:
     """Arm and start the mission, both retried until both work: ArduCopter arms in STABILIZE
-    before its position estimate allows AUTO, and then disarms an idle vehicle."""
+    before its position estimate allows AUTO.
+
+    Auto-disarm goes off first. At 25x an armed vehicle idle on the ground disarms 0.4 wall
+    seconds after arming (10 s), which a loaded machine can spend between the two calls; the
+    start then puts a disarmed vehicle in AUTO (ArduCopter accepts MISSION_START disarmed),
+    and it never flies."""
+    params = ParamAsync(vehicle.system)
+    if vehicle.autopilot == "ardupilot":
+        await retry(lambda: params.set_param_int("DISARM_DELAY", 0))
+    else:
+        await retry(lambda: params.set_param_float("COM_DISARM_PRFLT", -1.0))
 
     async def attempt() -> None:
         await vehicle.action.arm()

@@ -66,6 +66,18 @@ def test_arming_waits_for_the_estimate_and_an_idle_armed_vehicle_disarms_after_t
     assert not flight.armed
 
 
+@pytest.mark.parametrize(
+    ("autopilot", "param"), [("ardupilot", "DISARM_DELAY"), ("px4", "COM_DISARM_PRFLT")]
+)
+def test_a_disarm_delay_of_zero_keeps_an_idle_vehicle_armed(autopilot: str, param: str):
+    sim, flight = make(autopilot)
+    flight.params.set(param, 0)
+    sim.advance(5.0)
+    assert flight.arm(sim.sim_time) == ACCEPTED
+    sim.advance(60.0)
+    assert flight.armed
+
+
 def test_auto_from_the_ground_waits_for_mission_start():
     sim, flight = make(mission=[takeoff(), at(0, 30), land()])
     sim.advance(5.0)
