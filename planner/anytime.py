@@ -31,6 +31,7 @@ budget is set, so without one the same seed gives the same plan.
 
 from __future__ import annotations
 
+import functools
 from collections import Counter
 from dataclasses import dataclass, field
 
@@ -431,16 +432,10 @@ def plan_anytime(
     object_map = cell_map(objects, obstacles.shape)
     blocked = obstacles | object_map
     routes, first_routes, shortest = _lone_paths(scenario, obstacles, blocked, budget)
+    refuse = functools.partial(_refused, scenario, settings, budget, routes, shortest)
     if len(routes) < len(specs):
         missing = [u.id for u in scenario.uavs if u.id not in routes]
-        return _refused(
-            scenario,
-            settings,
-            budget,
-            routes,
-            shortest,
-            f"routing {len(routes)} of {len(specs)} UAVs ({_some(missing)} have no path)",
-        )
+        return refuse(f"routing {len(routes)} of {len(specs)} UAVs ({_some(missing)} have no path)")
     # Shortcuts and tightening only shorten the lone paths: with a budget they stop at a
     # share of it, and the rest of the fleet keeps its grid paths (as safe, a bit longer).
     shaping = budget.seconds is None or budget.elapsed() < SHAPING_SHARE * budget.seconds
@@ -458,14 +453,7 @@ def plan_anytime(
     table = ConflictTable(radii, blocked)
     for count, (uav, trajectory) in enumerate(paths.items()):
         if budget.expired():
-            return _refused(
-                scenario,
-                settings,
-                budget,
-                routes,
-                shortest,
-                f"checking {count} of {len(paths)} lone paths against the others",
-            )
+            return refuse(f"checking {count} of {len(paths)} lone paths against the others")
         table.update(uav, trajectory)
     # The final exact check covers every pair as the table's build did: keep its time back.
     budget.keep_back(2.0 * (budget.elapsed() - checked) + FINISH_S)
