@@ -1,9 +1,15 @@
-"""Point-mass kinematics for the whole fleet, stepped together with numpy.
+"""Kinematics for the whole fleet, stepped together with numpy.
 
-Each vehicle chases a target: horizontally at up to its cruise speed with a bounded
-acceleration, arriving with an `exit_speed` (non-zero to carry speed through a corner, zero
-to stop there); vertically at its climb or descent rate with its own acceleration bound.
-Altitude is metres above the vehicle's home and never goes below the ground (0).
+Horizontally each vehicle flies legs the way ArduCopter's S-curves do (scurve.py): a
+straight line to its target with jerk-limited speed changes, ending at rest. Given the
+target after this one, it starts that leg while this one slows down (ArduPilot's "fast
+waypoint"), where the blended corner stays inside the waypoint radius and the corner
+acceleration limit (2 WP_ACC), and counts the target reached half-way through the blend:
+the corner is rounded and costs no time. Anything else that changes the target in flight
+(a pause, a new goto, a mode change) brakes along the current velocity first, unless the
+vehicle is already heading for the new target. Vertically each vehicle chases its target
+altitude at its climb or descent rate with its own acceleration bound. Altitude is metres
+above the vehicle's home and never goes below the ground (0).
 """
 
 from __future__ import annotations
@@ -12,10 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-STOPPED_SPEED = 0.3
-"""m/s: a vehicle told to stop at a target counts as arrived below this speed."""
+from .scurve import DECEL_PHASE, PHASES, Profile, leg_profile, stopping_distance
+
 VERTICAL_TOLERANCE = 0.3
 """m: close enough to a target altitude."""
+LEGS = 2
+"""Legs a vehicle flies at once: the one finishing and the one starting (at a corner)."""
+AT_TARGET_M = 1e-6
+ENDS_AT_TARGET_M = 1e-3
+"""A leg ending this close to the target is the leg to it (float rounding of the sums)."""
+CORNER_ACCEL_FACTOR = 2.0
+"""ArduCopter's corner acceleration (WP_ACC_C) defaults to twice WP_ACC."""
 
 
 @dataclass(frozen=True)
@@ -29,6 +42,16 @@ class NavLimits:
     vertical_accel: float = 1.0
     land_speed: float = 0.5
     accept_radius: float = 2.0
+    jerk: float = 1.0
+
+
+@dataclass(frozen=True)
+class _NextLeg:
+    """The leg after the current target, flown from it once the current leg slows down."""
+
+    to: tuple[float, float]
+    direction: np.ndarray
+    profile: Profile
 
 
 class PointMassFleet:
@@ -36,47 +59,116 @@ class PointMassFleet:
 
     def __init__(self, homes_en: np.ndarray) -> None:
         n = len(homes_en)
+        self.time = 0.0
         self.pos = np.zeros((n, 3))
         self.pos[:, :2] = homes_en
         self.vel = np.zeros((n, 3))
         self.target = self.pos.copy()
-        self.exit_speed = np.zeros(n)
         self.radius = np.full(n, 2.0)
         self.cruise = np.full(n, 10.0)
         self.accel = np.full(n, 2.5)
+        self.jerk = np.full(n, 1.0)
         self.climb = np.full(n, 2.5)
         self.descent = np.full(n, 1.5)
         self.vertical_accel = np.full(n, 1.0)
         self.active = np.zeros(n, dtype=bool)
-        """Motors driving the point mass; inactive vehicles stand still."""
+        """Motors driving the vehicle; inactive vehicles stand still."""
         self.reached = np.zeros(n, dtype=bool)
         """Latched once a vehicle meets its current target; cleared by a new target."""
+        self.legs = _Legs(n)
+        self.base = self.pos[:, :2].copy()
+        """Where the finished legs left each vehicle; the legs flying add to it."""
+        self.next_leg: list[_NextLeg | None] = [None] * n
+        self.has_next = np.zeros(n, dtype=bool)
+        self.blending = np.zeros(n, dtype=bool)
+        """Flying the next leg already, while the one to the target finishes."""
 
     def __len__(self) -> int:
         return len(self.pos)
 
     def step(self, dt: float) -> None:
-        self._step_horizontal(dt)
+        self.time += dt
+        self._step_horizontal()
         self._step_vertical(dt)
         self.vel[~self.active] = 0.0
-        self.pos += self.vel * dt
+        self.pos[:, 2] += self.vel[:, 2] * dt
         on_ground = self.pos[:, 2] <= 0.0
         self.pos[on_ground, 2] = 0.0
         self.vel[on_ground & (self.vel[:, 2] < 0), 2] = 0.0
         self.reached |= self._arrived()
 
-    def _step_horizontal(self, dt: float) -> None:
-        to_target = self.target[:, :2] - self.pos[:, :2]
-        dist = np.hypot(to_target[:, 0], to_target[:, 1])
-        stopping = self.exit_speed <= 0
-        # pass through at exit_speed from the edge of the acceptance radius; stop at the point
-        braking = np.where(stopping, dist, np.maximum(dist - self.radius, 0.0))
-        speed = np.minimum(self.cruise, np.sqrt(self.exit_speed**2 + 2 * self.accel * braking))
-        speed[stopping] = np.minimum(speed[stopping], dist[stopping] / dt)
-        direction = np.divide(
-            to_target, dist[:, None], out=np.zeros_like(to_target), where=dist[:, None] > 1e-9
-        )
-        self.vel[:, :2] += _limit(direction * speed[:, None] - self.vel[:, :2], self.accel * dt)
+    def _step_horizontal(self) -> None:
+        legs = self.legs
+        if legs.on.any():
+            legs.on[~self.active] = False  # motors off: it stands where it is
+            offset, speed, finished, slowing = legs.evaluate(self.time)
+            self.base += (legs.direction * (finished * legs.length)[..., None]).sum(axis=1)
+            legs.on &= ~finished
+            offset[~legs.on] = 0.0
+            speed[~legs.on] = 0.0
+            self.pos[:, :2] = self.base + (legs.direction * offset[..., None]).sum(axis=1)
+            self.vel[:, :2] = (legs.direction * speed[..., None]).sum(axis=1)
+            single = legs.on.sum(axis=1) == 1
+            ready = self.has_next & ~self.blending & single & (slowing & legs.on).any(axis=1)
+            for vehicle in np.flatnonzero(ready):
+                self._maybe_blend(int(vehicle))
+        else:
+            self.vel[:, :2] = 0.0
+        self.base[~self.active] = self.pos[~self.active, :2]
+        idle = ~legs.on.any(axis=1)
+        away = _distance(self.target[:, :2] - self.pos[:, :2]) > AT_TARGET_M
+        for i in np.flatnonzero(self.active & idle & away):
+            self.fly_leg(int(i), self.pos[i, :2], 0.0)  # overshot or braked first: go there now
+
+    def _maybe_blend(self, i: int) -> None:
+        """Start the next leg now if ArduCopter would (SCurve's fast-waypoint test): this
+        leg is slowing down, ends before the next one has sped up, and the middle of the
+        blended turn is within the waypoint radius, slower than both legs and within the
+        corner acceleration. Only the leg to the target blends; a brake does not."""
+        legs, following = self.legs, self.next_leg[i]
+        if following is None or legs.on[i].sum() != 1:
+            return
+        k = int(np.argmax(legs.on[i]))
+        end = self.base[i] + legs.direction[i, k] * legs.length[i, k]
+        if _distance(end - self.target[i, :2]) > ENDS_AT_TARGET_M:
+            return  # braking somewhere else first
+        elapsed = self.time - legs.start[i, k]
+        remaining = legs.knots[i, k, -1] - elapsed
+        if elapsed < legs.knots[i, k, DECEL_PHASE] or remaining > following.profile.accel_end:
+            return
+        this = legs.profile(i, k)
+        s, v, a = this.at(elapsed + remaining / 2)
+        s_next, v_next, a_next = following.profile.at(remaining / 2)
+        here = legs.direction[i, k]
+        position = here * (s - this.length) + following.direction * s_next
+        velocity = here * v + following.direction * v_next
+        accel = here * a + following.direction * a_next
+        slowest = min(this.states[:, 1].max(), following.profile.states[:, 1].max())
+        if (
+            _distance(position) < self.radius[i]
+            and _distance(velocity) < slowest
+            and _distance(accel) < CORNER_ACCEL_FACTOR * self.accel[i]
+        ):
+            legs.add(i, self.time, following.direction, following.profile)
+            self.blending[i] = True
+
+    def _arrived(self) -> np.ndarray:
+        at_rest = ~self.legs.on.any(axis=1)
+        at_rest &= _distance(self.target[:, :2] - self.pos[:, :2]) <= self.radius
+        for i in np.flatnonzero(self.blending):
+            at_rest[i] = self._half_way_round(int(i))
+        vertical = np.abs(self.target[:, 2] - self.pos[:, 2]) < VERTICAL_TOLERANCE
+        return self.active & at_rest & vertical
+
+    def _half_way_round(self, i: int) -> bool:
+        """Whether a blended corner has passed its middle (ArduPilot's `s_finished`): the
+        next leg has flown as long as the last one has left to fly."""
+        legs = self.legs
+        if legs.on[i].sum() < 2:
+            return True
+        first, second = np.argsort(legs.start[i])
+        left = legs.knots[i, first, -1] - (self.time - legs.start[i, first])
+        return bool(self.time - legs.start[i, second] >= left)
 
     def _step_vertical(self, dt: float) -> None:
         error = self.target[:, 2] - self.pos[:, 2]
@@ -87,21 +179,114 @@ class PointMassFleet:
         limit = self.vertical_accel * dt
         self.vel[:, 2] += np.clip(change, -limit, limit)
 
-    def _arrived(self) -> np.ndarray:
-        to_target = self.target - self.pos
-        dist = np.hypot(to_target[:, 0], to_target[:, 1])
-        speed = np.hypot(self.vel[:, 0], self.vel[:, 1])
-        horizontal = (dist <= self.radius) & ((self.exit_speed > 0) | (speed < STOPPED_SPEED))
-        return self.active & horizontal & (np.abs(to_target[:, 2]) < VERTICAL_TOLERANCE)
+    def set_next_leg(self, i: int, leg: _NextLeg | None) -> None:
+        self.next_leg[i] = leg
+        self.has_next[i] = leg is not None
+
+    def leg_to(
+        self, i: int, start: np.ndarray, end: np.ndarray, entry_speed: float = 0.0
+    ) -> tuple[np.ndarray, Profile] | None:
+        """Direction and profile of a leg from `start` to `end` at vehicle i's limits (None
+        if there is nowhere to go)."""
+        vector = np.asarray(end, dtype=float) - start
+        distance = float(_distance(vector))
+        if distance <= AT_TARGET_M:
+            return None
+        profile = leg_profile(distance, entry_speed, self.cruise[i], self.accel[i], self.jerk[i])
+        return vector / distance, profile
+
+    def fly_leg(self, i: int, start: np.ndarray, entry_speed: float) -> None:
+        """A leg from `start` (where the legs flying end) to the target."""
+        leg = self.leg_to(i, start, self.target[i, :2], entry_speed)
+        if leg is not None:
+            self.legs.add(i, self.time, *leg)
+
+    def brake_to_rest(self, i: int) -> None:
+        """Replace the legs flying with one slow-down along the velocity."""
+        self.base[i] = self.pos[i, :2]
+        self.legs.on[i] = False
+        self.blending[i] = False
+        velocity = self.vel[i, :2].copy()
+        speed = float(_distance(velocity))
+        if speed > AT_TARGET_M:
+            stop = stopping_distance(speed, self.accel[i], self.jerk[i])
+            profile = leg_profile(stop, speed, speed, self.accel[i], self.jerk[i])
+            self.legs.add(i, self.time, velocity / speed, profile)
 
     def body(self, index: int) -> Body:
         return Body(self, index)
 
 
-def _limit(vectors: np.ndarray, max_norm: np.ndarray) -> np.ndarray:
-    norm = np.hypot(vectors[:, 0], vectors[:, 1])
-    scale = np.minimum(1.0, np.divide(max_norm, norm, out=np.ones_like(norm), where=norm > 0))
-    return vectors * scale[:, None]
+def _distance(vectors: np.ndarray) -> np.ndarray:
+    return np.hypot(vectors[..., 0], vectors[..., 1])
+
+
+class _Legs:
+    """Up to LEGS straight legs per vehicle: direction, length, start time and profile.
+
+    A leg's offset along its direction is `start_offset` plus its profile's distance; the
+    vehicle is at its base plus the offsets of its legs flying."""
+
+    def __init__(self, n: int) -> None:
+        self.on = np.zeros((n, LEGS), dtype=bool)
+        self.direction = np.zeros((n, LEGS, 2))
+        self.start_offset = np.zeros((n, LEGS))
+        self.length = np.zeros((n, LEGS))
+        self.start = np.zeros((n, LEGS))
+        self.knots = np.zeros((n, LEGS, PHASES + 1))
+        self.states = np.zeros((n, LEGS, PHASES + 1, 3))
+        self.jerks = np.zeros((n, LEGS, PHASES))
+
+    def add(
+        self,
+        i: int,
+        now: float,
+        direction: np.ndarray,
+        profile: Profile,
+        slot: int | None = None,
+        start_offset: float = 0.0,
+    ) -> None:
+        """Fly `profile` along `direction` from now (in `slot`, default a free one)."""
+        k = int(np.argmin(self.on[i])) if slot is None else slot
+        self.on[i, k] = True
+        self.direction[i, k] = direction
+        self.start_offset[i, k] = start_offset
+        self.length[i, k] = start_offset + profile.length
+        self.start[i, k] = now
+        self.knots[i, k] = profile.knots
+        self.states[i, k] = profile.states
+        self.jerks[i, k] = profile.jerks
+
+    def profile(self, i: int, k: int) -> Profile:
+        return Profile(
+            np.diff(self.knots[i, k]), self.jerks[i, k], self.knots[i, k], self.states[i, k]
+        )
+
+    def elapsed(self, now: float) -> np.ndarray:
+        return np.minimum(now - self.start, self.knots[..., -1])
+
+    def newest(self) -> np.ndarray:
+        """Each vehicle's latest leg flying (any slot if none)."""
+        return np.argmax(np.where(self.on, self.start, -np.inf), axis=1)
+
+    def evaluate(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Offset and speed of every leg now, which legs have finished and which are
+        slowing down to their end."""
+        shape = self.on.shape
+        knots = self.knots.reshape(-1, PHASES + 1)
+        tau = np.minimum(now - self.start.reshape(-1), knots[:, -1])
+        phase = (tau[:, None] >= knots[:, 1:PHASES]).sum(axis=1)
+        rows = np.arange(len(tau))
+        state = self.states.reshape(-1, PHASES + 1, 3)[rows, phase]
+        jerk = self.jerks.reshape(-1, PHASES)[rows, phase]
+        dt = tau - knots[rows, phase]
+        s, v, a = state[:, 0], state[:, 1], state[:, 2]
+        offset = self.start_offset.reshape(-1) + s + dt * (v + dt * (a / 2 + dt * jerk / 6))
+        speed = v + dt * (a + dt * jerk / 2)
+        finished = self.on & (tau >= knots[:, -1]).reshape(shape)
+        slowing = (tau >= knots[:, DECEL_PHASE]).reshape(shape)
+        offset = np.where(finished, self.length, offset.reshape(shape))
+        return offset, speed.reshape(shape), finished, slowing
 
 
 class Body:
@@ -142,30 +327,85 @@ class Body:
 
     def apply_limits(self, limits: NavLimits) -> None:
         f, i = self._fleet, self.index
-        f.cruise[i], f.accel[i] = limits.cruise_speed, limits.accel
+        f.cruise[i], f.accel[i], f.jerk[i] = limits.cruise_speed, limits.accel, limits.jerk
         f.climb[i], f.descent[i] = limits.climb_rate, limits.descent_rate
         f.vertical_accel[i] = limits.vertical_accel
 
     def set_cruise(self, speed: float) -> None:
-        self._fleet.cruise[self.index] = speed
+        """A new speed for the leg being flown (a leg already slowing down finishes) and
+        the one planned after it."""
+        f, i = self._fleet, self.index
+        f.cruise[i] = speed
+        legs, k = f.legs, int(f.legs.newest()[i])
+        if legs.on[i, k] and legs.elapsed(f.time)[i, k] < legs.knots[i, k, DECEL_PHASE]:
+            offset, leg_speed, _, _ = legs.evaluate(f.time)
+            remaining = legs.length[i, k] - offset[i, k]
+            limits = (speed, f.accel[i], f.jerk[i])
+            profile = leg_profile(remaining, leg_speed[i, k], *limits)
+            legs.add(i, f.time, legs.direction[i, k].copy(), profile, k, offset[i, k])
+        following = f.next_leg[i]
+        if following is not None and not f.blending[i]:
+            self._plan_next(following.to)
 
     def set_descent(self, rate: float) -> None:
         self._fleet.descent[self.index] = rate
 
     def go_to(
-        self, east: float, north: float, alt: float, radius: float, exit_speed: float = 0.0
+        self,
+        east: float,
+        north: float,
+        alt: float,
+        radius: float,
+        then: tuple[float, float] | None = None,
     ) -> None:
+        """Fly to a point and stop there, or, given the point after it (`then`), round the
+        corner into that leg where the autopilot would."""
         f, i = self._fleet, self.index
+        following = f.next_leg[i]
+        f.set_next_leg(i, None)
+        continuing = (
+            f.blending[i] and following is not None and np.allclose(following.to, (east, north))
+        )
         f.target[i] = (east, north, alt)
         f.radius[i] = max(radius, 0.1)
-        f.exit_speed[i] = exit_speed
         f.reached[i] = False
+        f.blending[i] = False
+        if f.active[i] and not continuing:
+            self._redirect()
+        if then is not None:
+            self._plan_next(then)
+
+    def _plan_next(self, then: tuple[float, float]) -> None:
+        f, i = self._fleet, self.index
+        leg = f.leg_to(i, f.target[i, :2], np.asarray(then, dtype=float))
+        to = (float(then[0]), float(then[1]))
+        f.set_next_leg(i, None if leg is None else _NextLeg(to, *leg))
+
+    def _redirect(self) -> None:
+        """Keep going if already heading for the target; otherwise brake to rest first
+        (the fleet then starts the leg to the target from where the vehicle stops)."""
+        f, i = self._fleet, self.index
+        velocity = f.vel[i, :2]
+        speed = float(np.hypot(*velocity))
+        to_target = f.target[i, :2] - f.pos[i, :2]
+        distance = float(np.hypot(*to_target))
+        if speed > AT_TARGET_M and float(velocity @ to_target) < 0.999 * speed * distance:
+            f.brake_to_rest(i)
+            return
+        f.base[i] = f.pos[i, :2]
+        f.legs.on[i] = False
+        f.fly_leg(i, f.pos[i, :2], speed)
 
     def stopping_point(self) -> tuple[float, float]:
-        """Where braking at the acceleration limit would end."""
+        """Where a jerk-limited stop from the current velocity would end."""
         f, i = self._fleet, self.index
         vel = f.vel[i, :2]
-        return tuple(f.pos[i, :2] + vel * np.hypot(*vel) / (2 * f.accel[i]))
+        speed = float(np.hypot(*vel))
+        if speed <= AT_TARGET_M:
+            return float(f.pos[i, 0]), float(f.pos[i, 1])
+        stop = stopping_distance(speed, f.accel[i], f.jerk[i])
+        east, north = f.pos[i, :2] + vel / speed * stop
+        return float(east), float(north)
 
     def hold(self, alt: float | None = None) -> None:
         """Brake to a stop and stay there (at `alt`, default the current altitude)."""
@@ -177,4 +417,6 @@ class Body:
         f, i = self._fleet, self.index
         f.pos[i] = (east, north, alt)
         f.vel[i] = 0.0
+        f.base[i] = (east, north)
+        f.legs.on[i] = False
         self.go_to(east, north, alt, radius=0.5)

@@ -61,7 +61,7 @@ class Climb:
 
 
 class FlyTo:
-    """Fly to a point; arrive with `exit_speed` (carry speed into a turn) or stop and hold."""
+    """Fly to a point and stop there (and hold), or round the corner into the leg to `then`."""
 
     phase = IN_AIR
 
@@ -71,16 +71,16 @@ class FlyTo:
         north: float,
         alt: float,
         radius: float,
-        exit_speed: float = 0.0,
+        then: tuple[float, float] | None = None,
         hold_s: float = 0.0,
     ) -> None:
         self.east, self.north, self.alt = east, north, alt
-        self.radius, self.exit_speed, self.hold_s = radius, exit_speed, hold_s
+        self.radius, self.then, self.hold_s = radius, then, hold_s
         self._arrived_at: float | None = None
 
     def start(self, body: Body, now: float) -> None:
         self._arrived_at = None
-        body.go_to(self.east, self.north, self.alt, self.radius, self.exit_speed)
+        body.go_to(self.east, self.north, self.alt, self.radius, self.then)
 
     def update(self, body: Body, now: float) -> bool:
         if self._arrived_at is None:

@@ -8,7 +8,6 @@ station and how (ArduCopter merges and skips some, see vehicle.py).
 from __future__ import annotations
 
 import enum
-import math
 from collections.abc import Callable
 from typing import Protocol
 
@@ -228,11 +227,23 @@ class MissionRunner:
         own_radius = command == NAV_WAYPOINT and item.param2 > 0
         radius = item.param2 if own_radius else limits.accept_radius
         hold_s = item.param1 if command in (NAV_WAYPOINT, NAV_LOITER_TIME) else 0.0
-        exit_speed = 0.0 if hold_s > 0 else self._corner_speed(item, items, east, north, radius)
-        fly: Manoeuvre = FlyTo(east, north, alt, radius, exit_speed, hold_s)
+        then = self._next_corner(item, items) if hold_s <= 0 else None
+        fly: Manoeuvre = FlyTo(east, north, alt, radius, then, hold_s)
         if command == NAV_LOITER_UNLIM:
             fly = Sequence(fly, Hold())
         return fly if climb_first is None else Sequence(climb_first, fly)
+
+    def _next_corner(
+        self, item: MissionItem, items: list[MissionItem]
+    ) -> tuple[float, float] | None:
+        """Where the leg after this waypoint goes, if the vehicle flies on into it without
+        stopping (ArduCopter's fast waypoint: the next navigation item is a place to fly to)."""
+        following = _next_nav(items, item.seq)
+        if following is None or following.command not in PASS_THROUGH_TARGETS:
+            return None
+        if not following.has_position or item.command != NAV_WAYPOINT:
+            return None
+        return self._placer.position(following, self._body)
 
     def _takeoff(self, alt: float) -> Manoeuvre | None:
         if self._body.alt >= alt - 0.5:
@@ -245,38 +256,6 @@ class MissionRunner:
             return None
         return Climb(max(self._implicit_takeoff, alt))
 
-    def _corner_speed(
-        self, item: MissionItem, items: list[MissionItem], east: float, north: float, radius: float
-    ) -> float:
-        """Speed to carry through this waypoint: full for a straight line, less for a sharp
-        turn (the turn at the acceleration limit fits inside the acceptance radius), zero if
-        the vehicle must stop (end of mission, landing, hold)."""
-        following = _next_nav(items, item.seq)
-        if following is None or following.command not in PASS_THROUGH_TARGETS:
-            return 0.0
-        if not following.has_position:
-            return 0.0
-        limits = self._limits()
-        next_east, next_north = self._placer.position(following, self._body)
-        here_east, here_north, _ = self._body.position
-        turn = _turn_angle(
-            (east - here_east, north - here_north), (next_east - east, next_north - north)
-        )
-        if turn is None:
-            return 0.0
-        if turn < 1e-3:
-            return limits.cruise_speed
-        return min(limits.cruise_speed, math.sqrt(limits.accel * radius / math.tan(turn / 2)))
-
 
 def _next_nav(items: list[MissionItem], seq: int) -> MissionItem | None:
     return next((item for item in items[seq + 1 :] if item.command in NAV_COMMANDS), None)
-
-
-def _turn_angle(leg_in: tuple[float, float], leg_out: tuple[float, float]) -> float | None:
-    """Heading change between two legs in radians, None if a leg has no length."""
-    len_in, len_out = math.hypot(*leg_in), math.hypot(*leg_out)
-    if len_in < 1e-6 or len_out < 1e-6:
-        return None
-    cos = (leg_in[0] * leg_out[0] + leg_in[1] * leg_out[1]) / (len_in * len_out)
-    return math.acos(max(-1.0, min(1.0, cos)))

@@ -50,6 +50,7 @@ ARDUCOPTER_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("WP_SPD_UP", 2.5, REAL32),
     ("WP_SPD_DN", 1.5, REAL32),
     ("WP_ACC_Z", 1.0, REAL32),
+    ("WP_JERK", 1.0, REAL32),
     ("LAND_SPD_MS", 0.5, REAL32),
     ("RTL_ALT_M", 15.0, REAL32),
     ("FENCE_ENABLE", 0, INT8),
@@ -72,6 +73,7 @@ PX4_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("MPC_Z_VEL_MAX_UP", 3.0, REAL32),
     ("MPC_Z_VEL_MAX_DN", 1.5, REAL32),
     ("MPC_ACC_UP_MAX", 4.0, REAL32),
+    ("MPC_JERK_AUTO", 4.0, REAL32),
     ("MPC_LAND_SPEED", 0.7, REAL32),
     ("NAV_ACC_RAD", 2.0, REAL32),
     ("MIS_TAKEOFF_ALT", 2.5, REAL32),
@@ -79,6 +81,13 @@ PX4_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("NAV_DLL_ACT", 0, INT32),
 )
 """PX4 names, SI units and defaults."""
+
+
+ARDUCOPTER_EFFECTIVE_JERK = 0.5
+"""ArduCopter's S-curves limit snap as well (the jerk itself ramps up), so its speed
+changes take longer than WP_JERK alone would give; the mock's jerk-only S-curves use
+half of WP_JERK, which matches ArduCopter SITL (4.8.0-dev): a 20 m leg from rest to rest
+at 1 m/s took 22.9 s there, 22.8 s here (22.0 s with the whole WP_JERK)."""
 
 
 def arducopter_limits(params: ParameterSet) -> NavLimits:
@@ -90,6 +99,7 @@ def arducopter_limits(params: ParameterSet) -> NavLimits:
         vertical_accel=params.get("WP_ACC_Z"),
         land_speed=params.get("LAND_SPD_MS"),
         accept_radius=params.get("WP_RADIUS_M"),
+        jerk=params.get("WP_JERK") * ARDUCOPTER_EFFECTIVE_JERK,
     )
 
 
@@ -102,6 +112,7 @@ def px4_limits(params: ParameterSet) -> NavLimits:
         vertical_accel=params.get("MPC_ACC_UP_MAX"),
         land_speed=params.get("MPC_LAND_SPEED"),
         accept_radius=params.get("NAV_ACC_RAD"),
+        jerk=params.get("MPC_JERK_AUTO"),
     )
 
 

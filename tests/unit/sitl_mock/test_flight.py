@@ -111,7 +111,7 @@ def test_waypoint_hold_time_stops_and_waits():
     airborne_in_guided(sim, flight)
     flight.set_mode(FlightMode.AUTO, sim.sim_time)
     positions = []
-    for _ in range(200):
+    for _ in range(300):  # two 20 m S-curve legs and the 5 s hold
         sim.advance(0.1)
         positions.append(local(sim)[0])
     stopped = [east for east in positions if abs(east - 20.0) < 0.2]
@@ -125,13 +125,13 @@ def test_pause_holds_and_continue_resumes():
     flight.set_mode(FlightMode.AUTO, sim.sim_time)
     sim.advance(5.0)
     assert flight.pause(sim.sim_time) == ACCEPTED
-    sim.advance(6.0)
+    sim.advance(10.0)  # an S-curve stop from the speed reached: about 7 s
     paused_at = local(sim)[0]
     sim.advance(3.0)
     assert local(sim)[0] == pytest.approx(paused_at, abs=0.05)
     assert sim.state(1).mission_state == 4
     assert flight.resume(sim.sim_time) == ACCEPTED
-    sim.advance(3.0)
+    sim.advance(8.0)  # an S-curve start from rest: over 10 m in 8 s
     assert local(sim)[0] > paused_at + 5.0
 
 
