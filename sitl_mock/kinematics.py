@@ -99,8 +99,10 @@ class PointMassFleet:
 
     def _step_horizontal(self) -> None:
         legs = self.legs
+        stopped = ~self.active & legs.on.any(axis=1)
+        self.base[stopped] = self.pos[stopped, :2]  # motors off: it stands where it is
+        legs.on[stopped] = False
         if legs.on.any():
-            legs.on[~self.active] = False  # motors off: it stands where it is
             offset, speed, finished, slowing = legs.evaluate(self.time)
             self.base += (legs.direction * (finished * legs.length)[..., None]).sum(axis=1)
             legs.on &= ~finished
@@ -114,7 +116,6 @@ class PointMassFleet:
                 self._maybe_blend(int(vehicle))
         else:
             self.vel[:, :2] = 0.0
-        self.base[~self.active] = self.pos[~self.active, :2]
         idle = ~legs.on.any(axis=1)
         away = _distance(self.target[:, :2] - self.pos[:, :2]) > AT_TARGET_M
         for i in np.flatnonzero(self.active & idle & away):

@@ -133,6 +133,17 @@ def test_inactive_vehicles_do_not_move_and_vehicles_are_independent():
     assert fleet.pos[1, 0] == 0.0
 
 
+def test_motors_stopping_mid_leg_leave_the_vehicle_where_it_is():
+    fleet = flying_fleet(cruise_speed=2.0)
+    fleet.body(0).go_to(100.0, 0.0, 10.0, radius=2.0)
+    run(fleet, 10.0)
+    where = fleet.pos[0, :2].copy()
+    assert where[0] > 5.0
+    fleet.active[0] = False
+    run(fleet, 1.0)
+    assert fleet.pos[0, :2] == pytest.approx(where)
+
+
 def test_hold_brakes_along_the_velocity_to_the_jerk_limited_stopping_point():
     fleet = flying_fleet()
     body = fleet.body(0)
