@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scurve import DECEL_PHASE, PHASES, Profile, leg_profile, stopping_distance
+from .scurve import DECEL_PHASE, PHASES, Profile, advance, leg_profile, stopping_distance
 
 VERTICAL_TOLERANCE = 0.3
 """m: close enough to a target altitude."""
@@ -135,7 +135,7 @@ class PointMassFleet:
             return  # braking somewhere else first
         elapsed = self.time - legs.start[i, k]
         remaining = legs.knots[i, k, -1] - elapsed
-        if elapsed < legs.knots[i, k, DECEL_PHASE] or remaining > following.profile.accel_end:
+        if remaining > following.profile.accel_end:  # (it is slowing down: see the caller)
             return
         this = legs.profile(i, k)
         s, v, a = this.at(elapsed + remaining / 2)
@@ -259,9 +259,7 @@ class _Legs:
         self.jerks[i, k] = profile.jerks
 
     def profile(self, i: int, k: int) -> Profile:
-        return Profile(
-            np.diff(self.knots[i, k]), self.jerks[i, k], self.knots[i, k], self.states[i, k]
-        )
+        return Profile(self.jerks[i, k], self.knots[i, k], self.states[i, k])
 
     def elapsed(self, now: float) -> np.ndarray:
         return np.minimum(now - self.start, self.knots[..., -1])
@@ -280,10 +278,9 @@ class _Legs:
         rows = np.arange(len(tau))
         state = self.states.reshape(-1, PHASES + 1, 3)[rows, phase]
         jerk = self.jerks.reshape(-1, PHASES)[rows, phase]
-        dt = tau - knots[rows, phase]
-        s, v, a = state[:, 0], state[:, 1], state[:, 2]
-        offset = self.start_offset.reshape(-1) + s + dt * (v + dt * (a / 2 + dt * jerk / 6))
-        speed = v + dt * (a + dt * jerk / 2)
+        state = advance(state, jerk, tau - knots[rows, phase])
+        offset = self.start_offset.reshape(-1) + state[:, 0]
+        speed = state[:, 1]
         finished = self.on & (tau >= knots[:, -1]).reshape(shape)
         slowing = (tau >= knots[:, DECEL_PHASE]).reshape(shape)
         offset = np.where(finished, self.length, offset.reshape(shape))

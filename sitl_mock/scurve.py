@@ -41,10 +41,9 @@ def stopping_distance(speed: float, accel: float, jerk: float) -> float:
 
 @dataclass(frozen=True)
 class Profile:
-    """Seven phases: their durations and jerks, and the (distance, speed, acceleration)
+    """Seven phases: their jerks, start times, and the (distance, speed, acceleration)
     at the start of each phase and at the end (row 7)."""
 
-    durations: np.ndarray  # (7,)
     jerks: np.ndarray  # (7,)
     knots: np.ndarray  # (8,) start time of each phase, then the end
     states: np.ndarray  # (8, 3)
@@ -120,7 +119,7 @@ def _profile(v0: float, peak: float, cruise_s: float, accel: float, jerk: float)
         states[k + 1] = advance(states[k], jerks[k], durations[k])
     states[-1, 2] = 0.0  # the ramps cancel; drop their rounding
     states[-1, 1] = 0.0
-    return Profile(durations, jerks, knots, states)
+    return Profile(jerks, knots, states)
 
 
 def advance(state: np.ndarray, jerk: np.ndarray | float, dt: np.ndarray | float) -> np.ndarray:
