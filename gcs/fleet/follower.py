@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 from dataclasses import dataclass
 
+from gcs.fleet.conflict_guard import ConflictGuard
 from gcs.fleet.crew import Crew
 from gcs.fleet.events import (
     FlightEnded,
@@ -24,7 +25,7 @@ from gcs.fleet.events import (
 )
 from gcs.fleet.interventions import abort
 from gcs.fleet.member import Member
-from gcs.fleet.schedule_keeper import decide
+from gcs.fleet.schedule_keeper import coming_down, decide, in_the_plan
 from gcs.mission.geodesy import distance_m
 
 
@@ -44,6 +45,7 @@ class Follower:
         self.crew = crew
         self.finished: set[str] = set()
         self._link_down: set[str] = set()
+        self._guard = ConflictGuard(crew.settings.keeping.guard)
 
     async def follow(self, timeout_s: float | None = None) -> FlightReport:
         """Watch the flight to its end; `timeout_s` is in the vehicles' seconds (default:
@@ -128,7 +130,10 @@ class Follower:
 
     async def _keep_schedule(self) -> None:
         crew = self.crew
-        decision = decide(list(crew.progress()), crew.holds, crew.settings.keeping)
+        progress = list(crew.progress())
+        trackers = {uav: m.tracker for uav, m in crew.members.items()}
+        outlook = self._guard.gives_way(in_the_plan(progress), coming_down(progress), trackers)
+        decision = decide(progress, crew.holds, crew.settings.keeping, outlook)
         if decision.pause:
             stop = crew.holds.keeper_pauses(decision.pause)
             lag = decision.laggard_lag_s
