@@ -9,8 +9,8 @@ So the guard looks `horizon_s` ahead: every vehicle goes on along its ideal flig
 the point of it where it is now (its plan time), and a pair predicted to come closer than
 the plan's own closest approach less `tolerance_m` gives way: the one ahead of schedule
 waits for the other. When both are on one clock the prediction is the plan itself, so a
-conflict clears once the one behind has caught up, and the one waiting has the smaller
-lag, so no two vehicles ever wait for each other.
+conflict clears once the one behind has caught up. The one furthest behind never waits
+(everyone else waits for it), so the fleet's clock always moves on.
 
 The plan counts a vehicle as gone once it reaches its goal, but a real one spends its
 descent there in the air (about 20 s from 10 m on ArduCopter). Until it is on the ground
@@ -49,6 +49,7 @@ class Outlook:
     gives_way: dict[str, str] = field(default_factory=dict)
     ids: tuple[str, ...] = ()
     soonest_m: NDArray[np.float64] | None = None
+    must_go: frozenset[str] = frozenset()  # stopped in the way of the one furthest behind
 
     def meets(self, a: str, b: str, within_m: float) -> bool:
         if self.soonest_m is None or a not in self.ids or b not in self.ids:
@@ -98,39 +99,53 @@ class ConflictGuard:
         `landing`); of two moving ones the one waits whose standing keeps them further
         apart. A stopped one stays while going on would take it too close to another as
         that one is and, if that one stands, to it going on too (a knot of stopped ones
-        that may all go on together must not wait for each other forever)."""
+        that may all go on together must not wait for each other forever).
+
+        The one furthest behind schedule never waits for another in the plan: all the
+        others wait for it, so it alone brings the fleet back to one clock, and a flight
+        where it waited could stand still for good. Where it would pass too close to one
+        stopped for it, that one goes on (`must_go`) if it can do so safely."""
         if self._reference is None and trackers:
             self._reference = next(iter(trackers.values())).origin
-        stopped = [p for p in flying if p.paused]
-        everyone = [p for p in flying if not p.paused] + stopped
-        everyone += [p for p in landing if p.airborne]
-        everyone = [p for p in everyone if p.lat is not None and p.lon is not None]
-        moving = sum(1 for p in everyone if p in flying and not p.paused)
+        in_plan = {p.uav_id for p in flying}
+        located = [p for p in [*flying, *landing] if p.lat is not None and p.lon is not None]
+        located = [p for p in located if p.uav_id in in_plan or p.airborne]
+        everyone = sorted(located, key=lambda p: 2 if p.uav_id not in in_plan else int(p.paused))
+        moving = sum(1 for p in everyone if p.uav_id in in_plan and not p.paused)
+        planned = sum(1 for p in everyone if p.uav_id in in_plan)
         if len(everyone) < 2:
             return Outlook()
         ids = [p.uav_id for p in everyone]
+        lag = max(range(planned), key=lambda k: everyone[k].lag_s, default=-1)
         here, going = self._tracks(everyone, trackers)
         as_is = np.concatenate([going[:moving], here[moving:]])
         apart = _closest_approaches(here[:, :1], here[:, :1])  # now
         floor = self.plan_closest_m(trackers) - self.policy.tolerance_m
         too_close = np.minimum(floor, apart - CLOSING_M)  # unless it gets no closer
-        waits: dict[str, str] = {}
         closest = _closest_approaches(as_is, as_is)
         if_stands = _closest_approaches(here, as_is)  # [i, j]: i stands, j as it is
+        if_goes = _closest_approaches(going, as_is)  # [i, j]: i goes on, j as it is
+        both_go = _closest_approaches(going, going)
+        waits: dict[str, str] = {}
+        must_go: set[str] = set()
         for i, j in zip(*np.nonzero(np.triu(closest < too_close, k=1)), strict=True):
             if i >= moving:
                 continue  # both stand: they keep their distance
             if j < moving and if_stands[j, i] > if_stands[i, j]:
                 i, j = j, i
+            if i == lag and j < moving:
+                i, j = j, i  # the other moving one waits instead
+            elif i == lag and j < planned:
+                if not np.any(if_goes[j] < too_close[j]):
+                    must_go.add(ids[j])  # stopped in its way, and free to go on
+                continue
             waits.setdefault(ids[i], ids[j])
-        if_goes = _closest_approaches(going, as_is)  # [i, j]: i goes on, j as it is
-        both_go = _closest_approaches(going, going)
-        for i in range(moving, moving + len(stopped)):
+        for i in range(moving, planned):
             stuck = (if_goes[i] < too_close[i]) & (both_go[i] < too_close[i])
             blocked = np.nonzero(stuck)[0]
-            if len(blocked):
+            if len(blocked) and i != lag:
                 waits.setdefault(ids[i], ids[blocked[0]])
-        return Outlook(waits, tuple(ids), self._soonest(everyone, trackers))
+        return Outlook(waits, tuple(ids), self._soonest(everyone, trackers), frozenset(must_go))
 
     def _soonest(
         self, everyone: list[VehicleProgress], trackers: dict[str, RouteTracker]

@@ -9,7 +9,8 @@ behind is often far away, while two others about to cross drift apart in time (f
 on ArduCopter SITL, ten vehicles: 3.9 s apart at their crossing, 6.06 m for a 7.07 m
 plan). A vehicle holding at a waypoint is left alone, it is waiting already (and an
 autopilot may restart the hold on resume). Besides, a vehicle the conflict guard
-(`conflict_guard`) says must give way waits, whatever its lag, until the guard lets it go.
+(`conflict_guard`) says must give way waits, whatever its lag, until the guard lets it go,
+and one the guard says stands in the way of the vehicle furthest behind goes on.
 
 The keeper only ever resumes what it paused itself: a vehicle the operator holds stays
 held (it may well be the laggard the others wait for) until the operator continues it.
@@ -68,11 +69,13 @@ def decide(
         behind = max(near, key=lambda q: q.lag_s, default=p)
         ahead_by = behind.lag_s - p.lag_s
         yields_to = by_id.get(gives_way.get(p.uav_id, ""))
-        late = ahead_by > policy.pause_margin_s
+        in_the_way = p.uav_id in outlook.must_go
+        late = ahead_by > policy.pause_margin_s and not in_the_way
+        caught_up = ahead_by <= policy.resume_margin_s or in_the_way
         if p.uav_id not in holds.stopped and (late or yields_to) and not p.holding:
             pause.add(p.uav_id)
             waited_for.append(behind if late or yields_to is None else yields_to)
-        elif p.uav_id in mine and ahead_by <= policy.resume_margin_s and yields_to is None:
+        elif p.uav_id in mine and caught_up and yields_to is None:
             resume.add(p.uav_id)
     flying_ids = {p.uav_id for p in flying}
     resume |= {uav for uav in mine if uav not in flying_ids}  # finished or lost: let go

@@ -104,3 +104,15 @@ def test_the_keeper_keeps_two_far_apart_on_one_clock_when_their_plans_meet_soon(
     policy = KeepingPolicy(meet_distance_m=10.0)
     outlook = ConflictGuard(policy.guard).gives_way(fleet, [], TRACKERS)
     assert decide(fleet, Holds(), policy, outlook).pause == {"b"}
+
+
+def test_the_one_furthest_behind_never_waits_and_one_stopped_in_its_way_goes_on() -> None:
+    """B stopped for A at (0, 5), on A's line 5 m off; A 18 s behind it. Had A waited
+    for B as B waited for A, the flight would stand still (the mock's ten-UAV crossing
+    did, in CI); B going on north keeps them 7 m apart, so B goes."""
+    fleet = [at("a", 15.0, clock=33.0), at("b", GAP_S + 25.0, clock=33.0, paused=True)]
+    policy = KeepingPolicy()
+    outlook = ConflictGuard(policy.guard).gives_way(fleet, [], TRACKERS)
+    assert outlook.gives_way == {} and outlook.must_go == {"b"}
+    decision = decide(fleet, Holds(keeper={"b"}), policy, outlook)
+    assert decision.resume == {"b"} and not decision.pause
