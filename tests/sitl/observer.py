@@ -31,6 +31,12 @@ class Track:
     lon: list[float] = field(default_factory=list)
     alt: list[float] = field(default_factory=list)  # metres above home
 
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """t, lat, lon, alt of the samples complete now: the watching thread may be
+        between two appends while the flight's figures are taken."""
+        n = min(len(self.t), len(self.lat), len(self.lon), len(self.alt))
+        return tuple(np.array(column[:n]) for column in (self.t, self.lat, self.lon, self.alt))
+
 
 class Observer:
     def __init__(self, ports: list[int]) -> None:
@@ -70,20 +76,19 @@ class Observer:
         the observer's own, as reports arrive over loopback (the instances' boot clocks
         started at different moments)."""
         best: float | None = None
-        for a, b in itertools.combinations(self.tracks.values(), 2):
-            if len(a.t) < 2 or len(b.t) < 2:
+        tracks = [track.arrays() for track in self.tracks.values()]
+        for (at, alat, alon, aalt), (bt, blat, blon, balt) in itertools.combinations(tracks, 2):
+            if len(at) < 2 or len(bt) < 2:
                 continue
-            start, end = max(a.t[0], b.t[0]), min(a.t[-1], b.t[-1])
+            start, end = max(at[0], bt[0]), min(at[-1], bt[-1])
             if end <= start:
                 continue
             grid = np.arange(start, end, 1.0 / RATE_HZ)
-            lat0 = math.radians(a.lat[0])
-            north = (np.interp(grid, a.t, a.lat) - np.interp(grid, b.t, b.lat)) * 111_320.0
-            east = (np.interp(grid, a.t, a.lon) - np.interp(grid, b.t, b.lon)) * 111_320.0
+            lat0 = math.radians(alat[0])
+            north = (np.interp(grid, at, alat) - np.interp(grid, bt, blat)) * 111_320.0
+            east = (np.interp(grid, at, alon) - np.interp(grid, bt, blon)) * 111_320.0
             east *= math.cos(lat0)
-            up = (np.interp(grid, a.t, a.alt) > airborne_m) & (
-                np.interp(grid, b.t, b.alt) > airborne_m
-            )
+            up = (np.interp(grid, at, aalt) > airborne_m) & (np.interp(grid, bt, balt) > airborne_m)
             if up.any():
                 closest = float(np.min(np.hypot(north, east)[up]))
                 best = closest if best is None else min(best, closest)
