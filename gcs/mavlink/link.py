@@ -85,6 +85,7 @@ class VehicleLink:
         self._closed = False
         self._last_heartbeat: float | None = None
         self.heartbeat_period_s: float | None = None
+        self.gap_began: float | None = None  # loop time the latest heartbeat gap began
         self._received(heartbeat)
         connection.attach(self.sysid, self._received)
         self.spawn(self._watchdog())
@@ -178,7 +179,10 @@ class VehicleLink:
             return False
         interval, period = now - last, self.heartbeat_period_s
         self.heartbeat_period_s = interval if period is None else 0.9 * period + 0.1 * interval
-        return period is not None and interval > max(HEARTBEAT_GAP_FACTOR * period, MIN_GAP_S)
+        if period is None or interval <= max(HEARTBEAT_GAP_FACTOR * period, MIN_GAP_S):
+            return False
+        self.gap_began = last
+        return True
 
     def declare_rebooted(self) -> None:
         """The vehicle restarted (seen here, or by a listener that knows what it forgot)."""

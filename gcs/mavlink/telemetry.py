@@ -4,8 +4,10 @@ A real ArduPilot streams nothing but HEARTBEAT until asked. SET_MESSAGE_INTERVAL
 (MAVLink 2 era) is tried first, one message at a time; a vehicle that does not
 acknowledge it gets the older REQUEST_DATA_STREAM for everything instead. A vehicle
 forgets what it was asked when it reboots, so the streams are asked for again after a
-reboot and after the link comes back; after a gap in the heartbeats, a position stream
-that does not resume means the vehicle rebooted without the link noticing.
+reboot and after the link comes back. After a gap in the heartbeats, a position stream
+that was flowing before it and does not resume means the vehicle rebooted without the
+link noticing; a stream that was not flowing yet proves nothing (ArduPilot's heartbeats
+pause while it boots, before it streams anything), so it is only asked for again.
 """
 
 from __future__ import annotations
@@ -48,7 +50,16 @@ class TelemetryStreams:
         if event in (LinkEvent.REGAINED, LinkEvent.REBOOTED):
             self.link.spawn(self._ask_again())
         elif event == LinkEvent.GAP:
-            self.link.spawn(self._check_after_gap())
+            check = self._check_after_gap() if self._was_streaming() else self._ask_again()
+            self.link.spawn(check)
+
+    def _was_streaming(self) -> bool:
+        """A position came within GAP_CHECK_PERIODS heartbeat periods before the gap."""
+        heard, began = self.link.state.position_heard, self.link.gap_began
+        if heard is None or began is None:
+            return False
+        period = self.link.heartbeat_period_s or 1.0
+        return heard >= began - GAP_CHECK_PERIODS * period
 
     async def _ask_again(self) -> None:
         with contextlib.suppress(GcsError):

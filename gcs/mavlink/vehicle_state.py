@@ -70,6 +70,7 @@ class VehicleState:
     reached: set[int] = field(default_factory=set)
     last_reached: int | None = None
     time_boot_ms: int = 0
+    position_heard: float | None = None  # loop time of the last GLOBAL_POSITION_INT
     last_heard: float = 0.0  # loop time of the last message
     link_up: bool = False
     reboots: int = 0
@@ -120,6 +121,7 @@ def _heartbeat(s: VehicleState, m: Any, now: float) -> None:
 
 
 def _global_position(s: VehicleState, m: Any, now: float) -> None:
+    s.position_heard = now
     if m.lat == 0 and m.lon == 0:
         return  # no position origin yet (ArduPilot before its EKF has one)
     s.position = Position(m.lat / 1e7, m.lon / 1e7, m.relative_alt / 1000.0, m.alt / 1000.0)

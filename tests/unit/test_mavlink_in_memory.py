@@ -21,9 +21,10 @@ from gcs.mavlink.actions import FlightActions, is_not_ready
 from gcs.mavlink.commands import CommandPolicy, send_command
 from gcs.mavlink.connection import MavConnection
 from gcs.mavlink.errors import CommandFailedError, CommandTimeoutError, VehicleRebootedError
-from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink.link import LinkEvent, LinkSettings, VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
 from gcs.mavlink.mission_protocol import MissionClient
+from gcs.mavlink.telemetry import TelemetryStreams
 from gcs.mavlink.transport import MemoryTransport
 
 Reply = Callable[[Any], list[Any]]
@@ -197,6 +198,56 @@ async def test_a_reboot_ends_what_was_waiting_on_the_vehicle() -> None:
         peer.heartbeat()
         with pytest.raises(VehicleRebootedError):
             await waiting
+        assert link.state.reboots == 1
+    finally:
+        await link.close()
+
+
+def accept_commands(msg: Any) -> list[Any]:
+    if msg.get_type() != "COMMAND_LONG":
+        return []
+    return [
+        mavlink2.MAVLink_command_ack_message(msg.command, mavlink2.MAV_RESULT_ACCEPTED, 0, 0, 0, 0)
+    ]
+
+
+async def gap_in_heartbeats(link: VehicleLink, peer: Peer, *, streaming: bool) -> None:
+    """Heartbeats 0.01 s apart as far as the link knows, then at least 0.1 s of silence.
+
+    Sleeps only lengthen, so the silence is a gap however slow the machine is; then
+    wait for whatever the gap set off to end (never for the link's own watchdog).
+    """
+    gap: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+    link.on_event(lambda event: event == LinkEvent.GAP and gap.set_result(None))
+    link.heartbeat_period_s = 0.01
+    if streaming:
+        peer.send(peer.codec.global_position_int_encode(1000, 0, 0, 0, 0, 0, 0, 0, 65535))
+    await asyncio.sleep(0.1)
+    peer.heartbeat()
+    await asyncio.wait_for(gap, timeout=5.0)
+    set_off = [t for t in asyncio.all_tasks() if "_watchdog" not in repr(t.get_coro())]
+    await asyncio.wait([t for t in set_off if t is not asyncio.current_task()])
+
+
+async def test_a_gap_before_any_position_asks_again_rather_than_calls_it_a_reboot() -> None:
+    """ArduCopter's heartbeats pause while it boots, before it streams anything: a gap then
+    proves no reboot (real SITL, ten vehicles, a busy machine: an upload failed with
+    'vehicle 6 rebooted')."""
+    link, peer = await linked(accept_commands)
+    TelemetryStreams(link, {"GLOBAL_POSITION_INT": 5.0})
+    try:
+        await gap_in_heartbeats(link, peer, streaming=False)
+        assert link.state.reboots == 0
+        assert peer.sent("COMMAND_LONG"), "the streams are asked for again"
+    finally:
+        await link.close()
+
+
+async def test_a_position_stream_that_stops_at_a_gap_means_a_reboot() -> None:
+    link, peer = await linked(accept_commands)
+    TelemetryStreams(link, {"GLOBAL_POSITION_INT": 5.0})
+    try:
+        await gap_in_heartbeats(link, peer, streaming=True)
         assert link.state.reboots == 1
     finally:
         await link.close()
