@@ -7,9 +7,10 @@ are re-sent every `item_timeout_s` within the same overall bound. While items fl
 exchange is nudged every `item_timeout_s` (upload: the last item again, which also
 recovers a lost final ACK; download: the request again) and fails only when no new
 item has moved for `step_timeout_s * (retries + 1)`, so a noisy link is slow but not
-fatal. Every wait
-is bounded; a definitive refusal is never retried; a link loss or reboot ends the
-exchange at once with its own error.
+fatal. An upload that timed out or was refused for a passing reason (ERROR,
+CANCELLED) is started again from MISSION_COUNT, `whole_transfer_attempts` in all, while
+the vehicle is still heard. Every wait is bounded; a definitive refusal is never
+retried; a link loss or reboot ends the exchange at once with its own error.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ class TransferPolicy:
     step_timeout_s: float = 1.5
     item_timeout_s: float = 0.25
     retries: int = 5
-    whole_transfer_attempts: int = 3  # for non-definitive refusals (ERROR, CANCELLED)
+    whole_transfer_attempts: int = 3  # after a timeout or a passing refusal
 
     @property
     def stall_limit_s(self) -> float:
@@ -122,9 +123,11 @@ class MissionClient:
                 if not self.link.state.booting or boot_waits > BOOT_WAITS:
                     raise
                 await self._until_booted()  # "not yet", not "too many items"
-            except MissionRejectedError as exc:
-                if exc.definitive or attempt >= self.policy.whole_transfer_attempts:
+            except (MissionRejectedError, MissionTimeoutError) as exc:
+                definitive = isinstance(exc, MissionRejectedError) and exc.definitive
+                if definitive or attempt >= self.policy.whole_transfer_attempts:
                     raise
+                self.link.ensure_up()  # a vehicle gone is not waited for again
                 attempt += 1
 
     async def _upload_once(self, items: tuple[MissionItem, ...]) -> int:

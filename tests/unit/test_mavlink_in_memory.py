@@ -23,7 +23,7 @@ from gcs.mavlink.connection import MavConnection
 from gcs.mavlink.errors import CommandFailedError, CommandTimeoutError, VehicleRebootedError
 from gcs.mavlink.link import LinkEvent, LinkSettings, VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
-from gcs.mavlink.mission_protocol import MissionClient
+from gcs.mavlink.mission_protocol import MissionClient, TransferPolicy
 from gcs.mavlink.telemetry import TelemetryStreams
 from gcs.mavlink.transport import MemoryTransport
 
@@ -185,6 +185,32 @@ async def test_an_upload_waits_for_the_boot_and_accepts_what_arducopter_rebuilds
         peer.status = mavlink2.MAV_STATE_STANDBY
         peer.heartbeat()
         assert (await upload).verified
+    finally:
+        await link.close()
+
+
+async def test_an_upload_whose_opening_went_unanswered_starts_again_while_the_vehicle_is_heard():
+    """Every MISSION_COUNT of a first opening lost (a noisy link, failure mode 5): the
+    upload starts again from MISSION_COUNT instead of failing a vehicle that is there."""
+    autopilot = StoringAutopilot()
+    policy = TransferPolicy(step_timeout_s=0.05, item_timeout_s=0.02, retries=1)
+    lost = policy.retries + 1  # every try of the first opening
+
+    def lossy(msg: Any) -> list[Any]:
+        nonlocal lost
+        if msg.get_type() == "MISSION_COUNT" and lost > 0:
+            lost -= 1
+            return []
+        return autopilot(msg)
+
+    link, peer = await linked(lossy)
+    autopilot.peer = peer
+    try:
+        home = MissionItem(Command.NAV_WAYPOINT, Frame.GLOBAL, x=-353632620, y=1491652370, z=584.0)
+        waypoint = MissionItem(Command.NAV_WAYPOINT, x=-353632600, y=1491652370, z=20.0)
+        mission = Mission((home, waypoint), Autopilot.ARDUPILOT)
+        assert (await MissionClient(link, policy).upload(mission)).verified
+        assert len(peer.sent("MISSION_COUNT")) == policy.retries + 2
     finally:
         await link.close()
 
