@@ -257,8 +257,8 @@ async def gap_in_heartbeats(link: VehicleLink, peer: Peer, *, streaming: bool) -
 
 async def test_a_gap_before_any_position_asks_again_rather_than_calls_it_a_reboot() -> None:
     """ArduCopter's heartbeats pause while it boots, before it streams anything: a gap then
-    proves no reboot (real SITL, ten vehicles, a busy machine: an upload failed with
-    'vehicle 6 rebooted')."""
+    proves no reboot (the likely cause of an upload to real SITL that once failed with
+    'vehicle 6 rebooted', ten vehicles on a busy machine)."""
     link, peer = await linked(accept_commands)
     TelemetryStreams(link, {"GLOBAL_POSITION_INT": 5.0})
     try:
