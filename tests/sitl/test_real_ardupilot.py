@@ -100,8 +100,9 @@ def test_the_service_flies_real_arducopter(tmp_path: Path, name: str) -> None:
                 flown = observer.min_separation()
         finally:
             service.stop()
-    ended = next(e for e in events if e["kind"] == "FlightEnded")
     assert state["state"] == "landed", (state, [(e["kind"], e["uav_id"]) for e in events])
+    ended = next((e for e in events if e["kind"] == "FlightEnded"), None)
+    assert ended is not None, (state, [(e["kind"], e["uav_id"]) for e in events][-20:])
     assert ended["data"]["completed"], ended
     assert flown is not None and flown >= two_r(scenario), flown
     print(f"service flight {name}: GCS-measured {ended['data']['min_separation_m']:.2f} m, "
