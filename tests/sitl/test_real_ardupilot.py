@@ -96,7 +96,7 @@ def test_the_service_flies_real_arducopter(tmp_path: Path, name: str) -> None:
                     "the flight's end",
                     every=1.0,
                 )
-                events = client.get(f"/flights/{flight}/events").json()
+                events = client.get(f"/flights/{flight}/events", params={"limit": 10_000}).json()
                 flown = observer.min_separation()
         finally:
             service.stop()
