@@ -23,11 +23,16 @@ import httpx
 import numpy as np
 import pytest
 
+from gcs.fleet.events import FlightEnded
 from gcs.mission.geodesy import GridFrame
+from gcs.service.flights.active import event_json
+from gcs.service.settings import Settings
+from gcs.service.storage.database import Database
+from gcs.service.storage.tables import EventRow
 from planner.cases import load_case
 from planner.trajectory import Trajectory
 from sitl_mock import Simulator
-from tests.e2e.flying import fleet_at_starts, ground_speed, register, wait_for
+from tests.e2e.flying import Flight, fleet_at_starts, ground_speed, register, wait_for
 from tests.service_process import TOKEN, ServiceProcess
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
@@ -187,6 +192,22 @@ def state_shown(b: Browser) -> str:
     return str(b.page.inner_text("#flight-state"))
 
 
+def look_back(b: Browser, flight_id: str) -> str:
+    """What the look-back section shows for a stored flight."""
+    b.page.click("#lookback-section summary")
+    b.page.click("#refresh-flights-btn")
+    b.wait_js(
+        "(id) => [...document.querySelectorAll('#flight-select option')].some(o => o.value === id)",
+        30,
+        flight_id,
+    )
+    b.page.select_option("#flight-select", flight_id)
+    b.page.click("#show-flight-btn")
+    b.wait_js("() => document.querySelector('#lookback-result').textContent.length > 0", 60)
+    text: str = b.page.inner_text("#lookback-result")
+    return text
+
+
 def wait_state(b: Browser, states: tuple[str, ...], timeout_s: float) -> str:
     b.wait_js(
         "(states) => states.includes(document.querySelector('#flight-state').textContent)",
@@ -329,18 +350,7 @@ def test_an_operator_flies_case_vi_from_the_console(
         assert client.get(f"/flights/{flight_id}").json()["state"] == "aborted"
 
         # Look back at it from the stored events.
-        page.click("#lookback-section summary")
-        page.click("#refresh-flights-btn")
-        b.wait_js(
-            "(id) => [...document.querySelectorAll('#flight-select option')]"
-            ".some(o => o.value === id)",
-            30,
-            flight_id,
-        )
-        page.select_option("#flight-select", flight_id)
-        page.click("#show-flight-btn")
-        b.wait_js("() => document.querySelector('#lookback-result').textContent.length > 0", 30)
-        assert flight_id in page.inner_text("#lookback-result")
+        assert flight_id in look_back(b, flight_id)
         b.shot(shots, "console-aborted.png")
 
         timings = b.js("() => window.consoleTimings")
@@ -417,3 +427,35 @@ def test_validation_errors_appear_next_to_the_fields_they_name(
     # Chromium logs each refused request; the two 422 answers are the point here.
     unexpected = [m for m in browser.errors if "status of 422" not in m]
     assert not unexpected, unexpected
+
+
+def test_look_back_reads_every_stored_event_of_a_long_flight(
+    service: ServiceProcess, vehicles: Simulator, browser: Browser
+) -> None:
+    """A flight with more events than one page holds (10 000): the look-back still finds
+    its FlightEnded, stored last."""
+    page = browser.page
+    with service.client() as client:
+        flight = Flight.make(client, vehicles, "case-6")
+    stored = 10_500
+    database = Database(Settings(data_dir=service.data_dir).resolved_database_url)
+    ended = FlightEnded(True, 6.54, ("uav1", "uav3"), "landed")
+    with database.session() as s:
+        s.add_all(
+            EventRow(
+                flight_id=flight.id,
+                kind="Positions",
+                data={"type": "event", "kind": "Positions", "clock_s": t, "vehicles": {}},
+            )
+            for t in range(stored - 1)
+        )
+        s.add(EventRow(flight_id=flight.id, kind="FlightEnded", data=event_json(ended)))
+    database.engine.dispose()
+
+    page.goto(service.url + "/")
+    browser.wait_js("() => document.body.dataset.ready === 'true'", 30)
+    shown = look_back(browser, flight.id)
+    assert "measured separation 6.54 m (uav1 \u2013 uav3), outcome landed" in shown, shown
+    assert f"{stored} events" in shown, shown
+    assert page.locator("#events li").count() == 200
+    assert not browser.errors, browser.errors

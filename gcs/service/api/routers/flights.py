@@ -273,6 +273,9 @@ async def events(
     after: int = Query(default=0, ge=0, le=2**62, description="only events after this id"),
     limit: int = Query(default=1000, ge=1, le=10_000),
 ) -> list[EventOut]:
+    """The flight's stored events, oldest first: at most `limit` with ids after `after`.
+    A flight can store more than a page holds; ask again after the last id until a page
+    comes back short."""
     await flights.book.row(flight_id)
     rows = await flights.book.flights.events(flight_id, after, limit)
     return [EventOut.model_validate(e, from_attributes=True) for e in rows]

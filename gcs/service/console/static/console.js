@@ -6,6 +6,7 @@ const $ = (id) => document.getElementById(id);
 const FINAL_JOB = new Set(["done", "failed", "cancelled", "interrupted"]);
 const FINAL_FLIGHT = new Set(["landed", "aborted", "ended", "cancelled"]);
 const POLL_MS = 2000;
+const EVENTS_SHOWN = 200; // the newest, in the events list
 
 const field = new FieldMap($("map"), document.querySelector('meta[name="tile-url"]').content);
 const S = {
@@ -54,6 +55,19 @@ async function getAll(path, pages = 50) {
     if (page.length < size) break;
   }
   return out;
+}
+
+/** Every stored event of a flight, oldest first, page by page after the last id seen: a
+ * long or large flight stores more than one page holds. */
+async function allEvents(flightId) {
+  const size = 10000;
+  const out = [];
+  for (;;) {
+    const after = out.length ? out[out.length - 1].id : 0;
+    const page = await get(`/flights/${flightId}/events?after=${after}&limit=${size}`);
+    out.push(...page);
+    if (page.length < size) return out;
+  }
 }
 
 function order(uavId) {
@@ -606,7 +620,7 @@ function addEvent(e) {
   const item = el("li", { "data-kind": e.kind },
     el("strong", { text: e.kind }), e.uav_id ? ` ${e.uav_id}` : "", el("span", { class: "muted", text: ` ${describeEvent(e)}` }));
   list.prepend(item);
-  while (list.children.length > 200) list.lastChild.remove();
+  while (list.children.length > EVENTS_SHOWN) list.lastChild.remove();
   if (e.kind === "ObjectReported") showReplan(e);
 }
 
@@ -740,7 +754,7 @@ async function lookBack() {
     const watched = S.flight?.id === id;
     setScenario(stored.scenario, stored.id, !watched);
     showPlan(planOut);
-    const events = await get(`/flights/${id}/events?limit=10000`);
+    const events = await allEvents(id);
     const ended = events.find((e) => e.kind === "FlightEnded");
     const reached = events.filter((e) => e.kind === "ItemReached");
     const replans = events.filter((e) => e.kind === "ObjectReported");
@@ -778,7 +792,7 @@ async function lookBack() {
     }
     $("lookback-result").replaceChildren(...lines.map((t) => el("p", { text: t })));
     $("events").replaceChildren();
-    for (const e of events) addEvent({ kind: e.kind, uav_id: e.uav_id, ...e.data });
+    for (const e of events.slice(-EVENTS_SHOWN)) addEvent({ kind: e.kind, uav_id: e.uav_id, ...e.data });
   } catch (error) { fail(error); }
 }
 
