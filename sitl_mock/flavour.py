@@ -62,6 +62,11 @@ class Flavour:
     sends_unasked: bool
     """ArduPilot sends TIMESYNC, and GPS_GLOBAL_ORIGIN and HOME_POSITION when home is set,
     to a ground station that asked for nothing."""
+    pauses_only_on_waypoint_legs: bool
+    """ArduCopter pauses (DO_PAUSE_CONTINUE) an AUTO mission only while flying to a place
+    it has not reached (its WP submode: a waypoint, a loiter, a landing's place), and
+    GUIDED; anything else (a take-off, a descent, a stop at a waypoint, other modes) it
+    answers FAILED. PX4 holds from any flying state."""
 
     def new_params(self, sysid: int) -> ParameterSet:
         params = ParameterSet(self.param_defaults, bytewise=self.params_bytewise)
@@ -96,6 +101,7 @@ ARDUPILOT = Flavour(
     merges_item_reached=True,
     announces_items=True,
     sends_unasked=True,
+    pauses_only_on_waypoint_legs=True,
 )
 
 PX4 = Flavour(
@@ -125,6 +131,7 @@ PX4 = Flavour(
     merges_item_reached=False,
     announces_items=False,
     sends_unasked=False,
+    pauses_only_on_waypoint_legs=False,
 )
 
 FLAVOURS = {flavour.name: flavour for flavour in (ARDUPILOT, PX4)}

@@ -257,17 +257,28 @@ class FlightController:
         return ACCEPTED
 
     def pause(self, now: float) -> int:
+        """DO_PAUSE_CONTINUE 0. ArduCopter pauses AUTO only on the way to a place and
+        GUIDED anywhere, and answers everything else FAILED with "Failed to pause"; PX4
+        holds whatever it is flying."""
+        strict = self.flavour.pauses_only_on_waypoint_legs
         if self.mode == FlightMode.AUTO and self.runner.running:
-            self.runner.pause(now)
-            return ACCEPTED
-        if self._airborne:
+            if not strict or self.runner.on_a_waypoint_leg():
+                self.runner.pause(now)
+                return ACCEPTED
+        elif self._airborne and (not strict or self.mode == FlightMode.GUIDED):
             self._run(Hold(), now)
             return ACCEPTED
+        if strict:
+            self._say(mavlink.MAV_SEVERITY_INFO, "Failed to pause")
         return FAILED
 
     def resume(self, now: float) -> int:
+        """DO_PAUSE_CONTINUE 1: ArduCopter resumes only in AUTO and GUIDED."""
         if self.mode == FlightMode.AUTO and self.runner.running:
             self.runner.resume(now)
+        elif self.flavour.pauses_only_on_waypoint_legs and self.mode != FlightMode.GUIDED:
+            self._say(mavlink.MAV_SEVERITY_INFO, "Failed to resume")
+            return FAILED
         return ACCEPTED
 
     def change_speed(self, speed: float) -> int:

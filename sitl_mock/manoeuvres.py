@@ -82,6 +82,10 @@ class FlyTo:
         self._arrived_at = None
         body.go_to(self.east, self.north, self.alt, self.radius, self.then)
 
+    @property
+    def arrived(self) -> bool:
+        return self._arrived_at is not None
+
     def update(self, body: Body, now: float) -> bool:
         if self._arrived_at is None:
             if not body.reached:
@@ -116,8 +120,12 @@ class Sequence:
         self._index = 0
 
     @property
+    def current(self) -> Manoeuvre:
+        return self.steps[min(self._index, len(self.steps) - 1)]
+
+    @property
     def phase(self) -> int:
-        return self.steps[min(self._index, len(self.steps) - 1)].phase
+        return self.current.phase
 
     def start(self, body: Body, now: float) -> None:
         self._index = 0

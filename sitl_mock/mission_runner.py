@@ -151,14 +151,33 @@ class MissionRunner:
         self._complete = False
         self._manoeuvre = None
 
+    def on_a_waypoint_leg(self) -> bool:
+        """Flying to a place not reached yet (a waypoint, a loiter's place, the place of a
+        landing before it descends), or paused on the way: ArduCopter's WP submode, the
+        only part of a mission it pauses (not a take-off, a descent, or a stop at a
+        reached place)."""
+        if self._paused:
+            return True
+        manoeuvre = self._manoeuvre
+        if isinstance(manoeuvre, Sequence):
+            manoeuvre = manoeuvre.current
+        return (
+            self._running
+            and not self._complete
+            and isinstance(manoeuvre, FlyTo)
+            and not manoeuvre.arrived
+        )
+
     def pause(self, now: float) -> None:
         self._paused = True
         self._manoeuvre = Hold()
         self._manoeuvre.start(self._body, now)
 
     def resume(self, now: float) -> None:
-        self._paused = False
-        self._begin_item(now)
+        """Go on from a pause (nothing to do if not paused)."""
+        if self._paused:
+            self._paused = False
+            self._begin_item(now)
 
     def update(self, now: float) -> None:
         if not self._running or self._complete:

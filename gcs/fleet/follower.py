@@ -138,11 +138,11 @@ class Follower:
             stop = crew.holds.keeper_pauses(decision.pause)
             lag = decision.laggard_lag_s
             crew.bus.publish(Paused(tuple(sorted(decision.pause)), decision.laggard or "", lag))
-            await crew.each(lambda m: m.actions.pause(), "flight", stop)
+            await crew.each(lambda m: m.actions.pause_mission(), "flight", stop)
         if decision.resume:
             go = crew.holds.keeper_resumes(decision.resume)
             crew.bus.publish(Resumed(tuple(sorted(decision.resume))))
-            await crew.each(lambda m: m.actions.resume(), "flight", go)
+            await crew.each(lambda m: m.actions.resume_mission(), "flight", go)
 
 
 def default_timeout(crew: Crew) -> float:

@@ -48,5 +48,6 @@ async def run_each(
         elif isinstance(result, BaseException):
             raise result
         else:
-            outcomes[member.uav_id] = VehicleOutcome(member.uav_id, True, "ok", result)
+            detail = result if isinstance(result, str) else "ok"  # a hold says how
+            outcomes[member.uav_id] = VehicleOutcome(member.uav_id, True, detail, result)
     return outcomes

@@ -18,6 +18,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.commands import CommandAck, CommandPolicy, send_command
 from gcs.mavlink.errors import (
+    CommandDeniedError,
     CommandError,
     CommandFailedError,
     CommandTemporarilyRejectedError,
@@ -72,6 +73,9 @@ class FlightActions:
         self.link = link
         self.commands = command_policy or CommandPolicy()
         self.readiness = readiness or ReadinessPolicy()
+        self._braked_in_mission = False
+        """Held by a brake out of AUTO, which only AUTO again undoes (its HEARTBEAT may still
+        say AUTO for a moment after the switch)."""
 
     async def command(self, command: int, *params: float) -> CommandAck:
         return await send_command(self.link, command, *params, policy=self.commands)
@@ -180,12 +184,34 @@ class FlightActions:
         await self.command(mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, 1)
 
     async def proceed(self) -> None:
-        """Go on with the mission after a hold: continue it if it was paused in AUTO, or
-        switch back to AUTO (which resumes at the current item) after a brake."""
-        if self.link.state.mode == "AUTO":
-            await self.resume()
+        """The operator's continue after a hold: the mission goes on (`resume_mission`),
+        and a vehicle held outside its mission switches back to AUTO (which resumes at
+        the current item)."""
+        if self._braked_in_mission or self.link.state.mode == "AUTO":
+            await self.resume_mission()
         else:
             await self.set_mode("AUTO")
+
+    async def pause_mission(self) -> str:
+        """Stop a vehicle flying its mission until `resume_mission`; says how. The mission
+        is paused (DO_PAUSE_CONTINUE); ArduCopter pauses only on the way to a place, and
+        where it answers FAILED ("Failed to pause": taking off, coming down, standing at
+        a waypoint) the vehicle brakes instead."""
+        try:
+            await self.pause()
+            return "mission paused"
+        except (CommandFailedError, CommandDeniedError) as refused:
+            braked = await self._brake()
+            self._braked_in_mission = True
+            return f"{braked} (the mission would not pause: {refused.statustext or refused})"
+
+    async def resume_mission(self) -> None:
+        """Undo `pause_mission`: continue the paused mission, or AUTO after a brake."""
+        if self._braked_in_mission:
+            await self.set_mode("AUTO")
+            self._braked_in_mission = False
+        else:
+            await self.resume()
 
     async def return_to_launch(self) -> None:
         await self.set_mode("RTL")
@@ -194,18 +220,20 @@ class FlightActions:
         await self.set_mode("LAND")
 
     async def hold(self, in_mission: bool = False) -> str:
-        """Stop where it is, in whatever it is doing; says how.
+        """The operator's hold: stop where it is, in whatever it is doing; says how.
 
         In a mission (AUTO, or `in_mission`: just told to start one, which its HEARTBEAT
-        may not show yet) the mission is paused (DO_PAUSE_CONTINUE), so that `proceed`
-        resumes it; otherwise the vehicle brakes to a hover (ArduCopter BRAKE, PX4
-        AUTO.LOITER). A vehicle disarmed on the ground is left alone."""
+        may not show yet), `pause_mission`; otherwise the vehicle brakes to a hover
+        (ArduCopter BRAKE, PX4 AUTO.LOITER). A vehicle disarmed on the ground is left
+        alone."""
         state = self.link.state
         if state.down:
             return "on the ground, disarmed: nothing to hold"
         if in_mission or state.mode == "AUTO":
-            await self.pause()
-            return "mission paused"
+            return await self.pause_mission()
+        return await self._brake()
+
+    async def _brake(self) -> str:
         mode = "GUIDED" if self.link.autopilot == Autopilot.PX4 else "BRAKE"
         await self.set_mode(mode)
         return f"holding in {mode if mode == 'BRAKE' else 'LOITER'}"

@@ -234,6 +234,37 @@ def _span(points: list) -> float:
     )
 
 
+def test_a_hold_while_coming_down_brakes_and_continue_lands_at_the_goal(
+    client: httpx.Client,
+) -> None:
+    """ArduCopter will not pause a mission while it descends to land (FAILED, "Failed to
+    pause"): the hold brakes the vehicle instead, it stays up and still, and continue
+    (back to AUTO) lands it at its goal."""
+    with fleet_at_starts(load_case("case-1"), speedup=5.0).running() as sim:
+        flight = Flight.make(client, sim)
+        flight.fly()
+        landing = len(sim.vehicle(1).store.items()) - 1
+        wait_for(
+            lambda: sim.state(1).mission_seq == landing and 5.0 < sim.state(1).alt < 15.0,
+            180,
+            "uav1 coming down",
+        )
+        uav1 = flight.vehicle_ids[0]
+        held = client.post(f"/vehicles/{uav1}/hold").json()
+        assert held["ok"] and "BRAKE" in held["detail"], held
+        wait_for(lambda: ground_speed(sim, 1) < 0.05, 30, "uav1 stopped")
+        stopped_at = sim.sim_time
+        wait_for(lambda: sim.sim_time > stopped_at + 20, 30, "20 simulated seconds")
+        state = sim.state(1)
+        standing = ground_speed(sim, 1) < 0.05 and abs(state.velocity_ned[2]) < 0.05
+        assert (state.mode, state.alt > 3.0, standing) == ("BRAKE", True, True)
+        assert client.post(f"/vehicles/{uav1}/continue").json()["ok"]
+        assert flight.wait_state("landed", "ended", "interrupted") == "landed"
+        events = client.get(f"/flights/{flight.id}/events", params={"limit": 10_000}).json()
+    finished = [e["data"] for e in events if e["kind"] == "VehicleFinished"]
+    assert all(f["distance_to_goal_m"] < 1.0 for f in finished) and len(finished) == 2, finished
+
+
 # --- 5. one operation at a time -------------------------------------------------------------
 
 

@@ -277,3 +277,40 @@ async def test_a_position_stream_that_stops_at_a_gap_means_a_reboot() -> None:
         assert link.state.reboots == 1
     finally:
         await link.close()
+
+
+async def test_a_mission_arducopter_will_not_pause_is_braked_and_resumed_in_auto() -> None:
+    """ArduCopter pauses AUTO only on the way to a waypoint; landing, taking off or standing
+    at one it answers FAILED "Failed to pause". The vehicle then brakes, and resuming
+    switches back to AUTO even while its last HEARTBEAT still says AUTO (a continue would
+    be refused in BRAKE: "Failed to resume")."""
+    link, peer = await linked(silent)
+
+    def arducopter(msg: Any) -> list[Any]:
+        if msg.get_type() != "COMMAND_LONG":
+            return []
+        if msg.command == mavlink2.MAV_CMD_DO_PAUSE_CONTINUE:
+            ack = peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_FAILED)
+            return [ack, peer.codec.statustext_encode(6, b"Failed to pause")]
+        return [peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED)]
+
+    peer.reply = arducopter
+    auto, armed = 3, mavlink2.MAV_MODE_FLAG_SAFETY_ARMED | 0x01
+    peer.send(peer.codec.heartbeat_encode(2, 3, armed, auto, mavlink2.MAV_STATE_ACTIVE))
+    try:
+
+        async def in_auto() -> None:
+            while link.state.mode != "AUTO":
+                await asyncio.sleep(0.01)
+
+        await asyncio.wait_for(in_auto(), 10)
+        actions = FlightActions(link)
+        how = await actions.pause_mission()
+        assert how == "holding in BRAKE (the mission would not pause: Failed to pause)"
+        await actions.resume_mission()
+        commands = [(m.command, m.param1, m.param2) for m in peer.sent("COMMAND_LONG")]
+        pause, set_mode = mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, mavlink2.MAV_CMD_DO_SET_MODE
+        brake = mavlink2.COPTER_MODE_BRAKE
+        assert commands == [(pause, 0, 0), (set_mode, 1, brake), (set_mode, 1, auto)]
+    finally:
+        await link.close()

@@ -236,12 +236,12 @@ async def _on_link(actions: FlightActions, action: VehicleAction, who: str) -> V
             await actions.land()
         elif action == "rtl":
             await actions.return_to_launch()
-        elif actions.link.state.mode == "AUTO":
-            await actions.resume()
+        elif actions.link.state.mode in ("AUTO", "BRAKE"):  # paused, or braked by a hold
+            await actions.proceed()
         else:
             raise StateConflict(
                 f"vehicle {who} is in {actions.link.state.mode or 'no known mode'}, not paused "
-                "in a mission: there is nothing to continue"
+                "or braked in a mission: there is nothing to continue"
             )
     except GcsError as exc:
         return VehicleOutcome(who, False, str(exc), error=exc)

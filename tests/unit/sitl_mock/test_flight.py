@@ -45,6 +45,13 @@ def local(sim: Simulator) -> tuple[float, float]:
     return east, north
 
 
+def said(flight) -> list[str]:
+    """The STATUSTEXTs the flight controller says from now on."""
+    texts: list[str] = []
+    flight._say = lambda severity, text: texts.append(text)
+    return texts
+
+
 def airborne_in_guided(sim: Simulator, flight, alt: float = 20.0) -> None:
     sim.advance(5.0)
     assert flight.set_mode(FlightMode.GUIDED, sim.sim_time) == ACCEPTED
@@ -133,6 +140,59 @@ def test_pause_holds_and_continue_resumes():
     assert flight.resume(sim.sim_time) == ACCEPTED
     sim.advance(8.0)  # an S-curve start from rest: over 10 m in 8 s
     assert local(sim)[0] > paused_at + 5.0
+
+
+def test_arducopter_pauses_a_mission_only_on_the_way_to_a_place():
+    """As ArduCopter's ModeAuto::pause (WP submode, destination not reached): not in a
+    reached waypoint's hold, yes on the way to the landing's place, not in the descent;
+    a refusal is FAILED with "Failed to pause"."""
+    landing = at(20, 40, alt=0.0, command=mavlink.MAV_CMD_NAV_LAND)
+    sim, flight = make(mission=[takeoff(), at(20, 0, p1=20.0), landing])
+    texts = said(flight)
+    airborne_in_guided(sim, flight)
+    flight.set_mode(FlightMode.AUTO, sim.sim_time)
+    sim.advance(15.0)  # at the waypoint, in its 20 s hold
+    assert local(sim)[0] == pytest.approx(20.0, abs=0.3)
+    assert flight.pause(sim.sim_time) == FAILED
+    assert texts == ["Failed to pause"]
+    for _ in range(300):  # until the hold is over: on the way to the landing's place
+        sim.advance(0.1)
+        if sim.state(1).mission_seq == 3:
+            break
+    assert sim.state(1).mission_seq == 3 and sim.state(1).alt > 19.0
+    assert flight.pause(sim.sim_time) == ACCEPTED
+    assert flight.resume(sim.sim_time) == ACCEPTED
+    for _ in range(300):  # there, coming down
+        sim.advance(0.1)
+        if sim.state(1).alt < 15.0:
+            break
+    assert 10.0 < sim.state(1).alt < 15.0
+    assert flight.pause(sim.sim_time) == FAILED
+    assert flight.resume(sim.sim_time) == ACCEPTED  # AUTO resumes, paused or not
+
+
+@pytest.mark.parametrize("mode", [FlightMode.LOITER, FlightMode.BRAKE])
+def test_arducopter_pauses_and_resumes_nothing_but_auto_and_guided(mode: FlightMode):
+    sim, flight = make()
+    texts = said(flight)
+    airborne_in_guided(sim, flight)
+    assert flight.pause(sim.sim_time) == ACCEPTED  # GUIDED pauses
+    assert flight.resume(sim.sim_time) == ACCEPTED
+    assert flight.set_mode(mode, sim.sim_time) == ACCEPTED
+    assert flight.pause(sim.sim_time) == FAILED
+    assert flight.resume(sim.sim_time) == FAILED
+    assert texts[-2:] == ["Failed to pause", "Failed to resume"]
+
+
+def test_px4_holds_on_its_way_to_land():
+    far_landing = at(200, 0, alt=0.0, command=mavlink.MAV_CMD_NAV_LAND)
+    sim, flight = make("px4", [at(20, 0), far_landing])
+    sim.advance(5.0)
+    flight.set_mode(FlightMode.AUTO, sim.sim_time)
+    assert flight.arm(sim.sim_time) == ACCEPTED
+    sim.advance(40.0)
+    assert sim.state(1).mission_seq == 1 and sim.state(1).alt > 2.0
+    assert flight.pause(sim.sim_time) == ACCEPTED
 
 
 def test_change_speed_item_sets_the_cruise_speed():
