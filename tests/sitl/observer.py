@@ -22,6 +22,17 @@ from pymavlink import mavutil
 
 OBSERVER_PORT_OFFSET = 2
 RATE_HZ = 10
+M_PER_DEGREE = 111_320.0  # of latitude; of longitude times cos(latitude)
+
+
+@dataclass(frozen=True)
+class Mark:
+    """A vehicle's reported position at a moment of its own clock."""
+
+    boot_s: float
+    lat: float
+    lon: float
+    alt: float
 
 
 @dataclass
@@ -30,12 +41,21 @@ class Track:
     lat: list[float] = field(default_factory=list)
     lon: list[float] = field(default_factory=list)
     alt: list[float] = field(default_factory=list)  # metres above home
+    boot_s: list[float] = field(default_factory=list)  # the autopilot's own clock
+    speed: list[float] = field(default_factory=list)  # its horizontal ground speed, m/s
+    armed: bool | None = None  # as its last HEARTBEAT said
 
     def arrays(self) -> tuple[np.ndarray, ...]:
-        """t, lat, lon, alt of the samples complete now: the watching thread may be
-        between two appends while the flight's figures are taken."""
-        n = min(len(self.t), len(self.lat), len(self.lon), len(self.alt))
-        return tuple(np.array(column[:n]) for column in (self.t, self.lat, self.lon, self.alt))
+        """t, lat, lon, alt, boot_s of the samples complete now: the watching thread may
+        be between two appends while the flight's figures are taken."""
+        columns = (self.t, self.lat, self.lon, self.alt, self.boot_s)
+        n = min(len(column) for column in columns)
+        return tuple(np.array(column[:n]) for column in columns)
+
+    def latest(self) -> Mark:
+        _, lat, lon, alt, boot_s = self.arrays()
+        assert len(boot_s), "a vehicle has not reported its position yet"
+        return Mark(float(boot_s[-1]), float(lat[-1]), float(lon[-1]), float(alt[-1]))
 
 
 class Observer:
@@ -60,14 +80,20 @@ class Observer:
                 message_id, 1e6 / RATE_HZ, 0, 0, 0, 0, 0,
             )  # fmt: skip
             track = self.tracks[k]
+            wanted = ["GLOBAL_POSITION_INT", "HEARTBEAT"]
             while not self._stop.is_set():
-                msg = conn.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=0.5)
-                if msg is None or (msg.lat == 0 and msg.lon == 0):
+                msg = conn.recv_match(type=wanted, blocking=True, timeout=0.5)
+                if msg is None or msg.get_srcSystem() != conn.target_system:
                     continue
-                track.t.append(time.monotonic())
-                track.lat.append(msg.lat / 1e7)
-                track.lon.append(msg.lon / 1e7)
-                track.alt.append(msg.relative_alt / 1000.0)
+                if msg.get_type() == "HEARTBEAT":
+                    track.armed = bool(msg.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+                elif msg.lat != 0 or msg.lon != 0:
+                    track.t.append(time.monotonic())
+                    track.lat.append(msg.lat / 1e7)
+                    track.lon.append(msg.lon / 1e7)
+                    track.alt.append(msg.relative_alt / 1000.0)
+                    track.boot_s.append(msg.time_boot_ms / 1000.0)
+                    track.speed.append(math.hypot(msg.vx, msg.vy) / 100.0)
         finally:
             conn.close()
 
@@ -77,7 +103,9 @@ class Observer:
         started at different moments)."""
         best: float | None = None
         tracks = [track.arrays() for track in self.tracks.values()]
-        for (at, alat, alon, aalt), (bt, blat, blon, balt) in itertools.combinations(tracks, 2):
+        for (at, alat, alon, aalt, _), (bt, blat, blon, balt, _) in itertools.combinations(
+            tracks, 2
+        ):
             if len(at) < 2 or len(bt) < 2:
                 continue
             start, end = max(at[0], bt[0]), min(at[-1], bt[-1])
@@ -85,14 +113,42 @@ class Observer:
                 continue
             grid = np.arange(start, end, 1.0 / RATE_HZ)
             lat0 = math.radians(alat[0])
-            north = (np.interp(grid, at, alat) - np.interp(grid, bt, blat)) * 111_320.0
-            east = (np.interp(grid, at, alon) - np.interp(grid, bt, blon)) * 111_320.0
+            north = (np.interp(grid, at, alat) - np.interp(grid, bt, blat)) * M_PER_DEGREE
+            east = (np.interp(grid, at, alon) - np.interp(grid, bt, blon)) * M_PER_DEGREE
             east *= math.cos(lat0)
             up = (np.interp(grid, at, aalt) > airborne_m) & (np.interp(grid, bt, balt) > airborne_m)
             if up.any():
                 closest = float(np.min(np.hypot(north, east)[up]))
                 best = closest if best is None else min(best, closest)
         return best
+
+    def latest(self) -> list[Mark]:
+        """Where and when (by its own clock) each vehicle last reported itself."""
+        return [track.latest() for track in self.tracks.values()]
+
+    def speeds(self) -> list[float]:
+        """Each vehicle's last reported horizontal ground speed, m/s."""
+        return [track.speed[-1] if track.speed else 0.0 for track in self.tracks.values()]
+
+    def seconds_since(self, marks: list[Mark]) -> float:
+        """The least time any vehicle's own clock has run since its mark."""
+        return min(now.boot_s - then.boot_s for now, then in zip(self.latest(), marks, strict=True))
+
+    def moved_since(self, marks: list[Mark]) -> list[float]:
+        """How far each vehicle got from its mark (horizontally, m) at any report since."""
+        moved = []
+        for track, mark in zip(self.tracks.values(), marks, strict=True):
+            _, lat, lon, _, boot_s = track.arrays()
+            since = boot_s >= mark.boot_s
+            moved.append(float(np.max(metres_apart(lat[since], lon[since], mark), initial=0.0)))
+        return moved
+
+
+def metres_apart(lat: np.ndarray, lon: np.ndarray, mark: Mark) -> np.ndarray:
+    """Horizontal distances from a mark (equirectangular: the vehicles are metres apart)."""
+    north = (lat - mark.lat) * M_PER_DEGREE
+    east = (lon - mark.lon) * M_PER_DEGREE * math.cos(math.radians(mark.lat))
+    return np.asarray(np.hypot(north, east))
 
 
 @contextmanager
