@@ -45,7 +45,8 @@ def test_a_time_budget_always_returns_within_it(cpu_clock, name: str, budget: fl
     scenario = _fleet(name)
     started = time.process_time()
     result = plan(scenario, PlannerSettings(time_budget_s=budget))
-    assert time.process_time() - started < budget + OVERHEAD_S
+    spent = time.process_time() - started
+    assert spent < budget + OVERHEAD_S, f"{spent:.3f} s of CPU for a {budget} s budget"
     assert result.time_budget_s == budget
     if result.feasible:  # never called safe unless the check says so
         report = check_plan(
