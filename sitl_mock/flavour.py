@@ -62,7 +62,7 @@ class Flavour:
     sends_unasked: bool
     """ArduPilot sends TIMESYNC, and GPS_GLOBAL_ORIGIN and HOME_POSITION when home is set,
     to a ground station that asked for nothing."""
-    pauses_only_on_waypoint_legs: bool
+    pauses_only_on_the_way: bool
     """ArduCopter pauses (DO_PAUSE_CONTINUE) an AUTO mission only while flying to a place
     it has not reached (its WP submode: a waypoint, a loiter, a landing's place), and
     GUIDED; anything else (a take-off, a descent, a stop at a waypoint, other modes) it
@@ -101,7 +101,7 @@ ARDUPILOT = Flavour(
     merges_item_reached=True,
     announces_items=True,
     sends_unasked=True,
-    pauses_only_on_waypoint_legs=True,
+    pauses_only_on_the_way=True,
 )
 
 PX4 = Flavour(
@@ -131,7 +131,7 @@ PX4 = Flavour(
     merges_item_reached=False,
     announces_items=False,
     sends_unasked=False,
-    pauses_only_on_waypoint_legs=False,
+    pauses_only_on_the_way=False,
 )
 
 FLAVOURS = {flavour.name: flavour for flavour in (ARDUPILOT, PX4)}

@@ -260,9 +260,9 @@ class FlightController:
         """DO_PAUSE_CONTINUE 0. ArduCopter pauses AUTO only on the way to a place and
         GUIDED anywhere, and answers everything else FAILED with "Failed to pause"; PX4
         holds whatever it is flying."""
-        strict = self.flavour.pauses_only_on_waypoint_legs
+        strict = self.flavour.pauses_only_on_the_way
         if self.mode == FlightMode.AUTO and self.runner.running:
-            if not strict or self.runner.on_a_waypoint_leg():
+            if not strict or self.runner.on_the_way_to_a_place():
                 self.runner.pause(now)
                 return ACCEPTED
         elif self._airborne and (not strict or self.mode == FlightMode.GUIDED):
@@ -276,7 +276,7 @@ class FlightController:
         """DO_PAUSE_CONTINUE 1: ArduCopter resumes only in AUTO and GUIDED."""
         if self.mode == FlightMode.AUTO and self.runner.running:
             self.runner.resume(now)
-        elif self.flavour.pauses_only_on_waypoint_legs and self.mode != FlightMode.GUIDED:
+        elif self.flavour.pauses_only_on_the_way and self.mode != FlightMode.GUIDED:
             self._say(mavlink.MAV_SEVERITY_INFO, "Failed to resume")
             return FAILED
         return ACCEPTED

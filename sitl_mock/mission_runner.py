@@ -151,7 +151,7 @@ class MissionRunner:
         self._complete = False
         self._manoeuvre = None
 
-    def on_a_waypoint_leg(self) -> bool:
+    def on_the_way_to_a_place(self) -> bool:
         """Flying to a place not reached yet (a waypoint, a loiter's place, the place of a
         landing before it descends), or paused on the way: ArduCopter's WP submode, the
         only part of a mission it pauses (not a take-off, a descent, or a stop at a

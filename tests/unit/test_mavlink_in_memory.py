@@ -280,10 +280,10 @@ async def test_a_position_stream_that_stops_at_a_gap_means_a_reboot() -> None:
 
 
 async def test_a_mission_arducopter_will_not_pause_is_braked_and_resumed_in_auto() -> None:
-    """ArduCopter pauses AUTO only on the way to a waypoint; landing, taking off or standing
-    at one it answers FAILED "Failed to pause". The vehicle then brakes, and resuming
-    switches back to AUTO even while its last HEARTBEAT still says AUTO (a continue would
-    be refused in BRAKE: "Failed to resume")."""
+    """ArduCopter pauses AUTO only on the way to a place; taking off, coming down or
+    standing at a waypoint it answers FAILED "Failed to pause". The vehicle then brakes,
+    and resuming switches back to AUTO even while its last HEARTBEAT still says AUTO (a
+    continue would be refused in BRAKE: "Failed to resume")."""
     link, peer = await linked(silent)
 
     def arducopter(msg: Any) -> list[Any]:
