@@ -1,8 +1,10 @@
-"""Simulated time: fixed physics steps, with the wall clock deciding only how many to run.
+"""Simulated time: fixed physics steps, with the loop's clock deciding only how many to run.
 
-Like ArduPilot's SITL, the simulation never runs ahead of what the machine can do: each
-tick runs at most a few steps before the event loop handles the links again, and time
-that could not be run is let go (the simulation slips: it runs slower than its speed-up)
+The loop's clock is real time in production and virtual on a `VirtualTimeLoop`, where
+the simulation and the ground station share it and a flight replays exactly. Like
+ArduPilot's SITL, the simulation never runs ahead of what the machine can do: each tick
+runs at most a few steps before the event loop handles the links again, and time that
+could not be run is let go (the simulation slips: it runs slower than its speed-up)
 rather than caught up in one burst. A ground station therefore always has its answers
 taken in within a tenth of a simulated second, loaded machine or not, as it would with a
 real autopilot, instead of the vehicles flying seconds on without hearing it.
@@ -10,11 +12,21 @@ real autopilot, instead of the vehicles flying seconds on without hearing it.
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 DEFAULT_STEP_S = 0.02
 MAX_STEPS_PER_TICK = 5
 """Steps run before the links are served again (0.1 simulated s): beyond that, slip."""
+
+
+def loop_time() -> float:
+    """The running event loop's clock, the one clock of a simulation (virtual on a
+    `VirtualTimeLoop`); the monotonic clock when no loop runs (stepping by hand)."""
+    try:
+        return asyncio.get_running_loop().time()
+    except RuntimeError:
+        return time.monotonic()
 
 
 class SimClock:
@@ -37,14 +49,14 @@ class SimClock:
         return self.steps * self.step_s
 
     def start(self, wall_now: float | None = None) -> None:
-        self._wall_start = time.monotonic() if wall_now is None else wall_now
+        self._wall_start = loop_time() if wall_now is None else wall_now
         self._slipped_steps = 0
 
     def steps_due(self, wall_now: float | None = None) -> int:
         """How many steps to run now to keep simulated time at speedup x wall time."""
         if self._wall_start is None:
             self.start(wall_now)
-        wall = time.monotonic() if wall_now is None else wall_now
+        wall = loop_time() if wall_now is None else wall_now
         start = self._wall_start if self._wall_start is not None else wall
         target = int((wall - start) * self.speedup / self.step_s) - self._slipped_steps
         due = max(0, target - self.steps)

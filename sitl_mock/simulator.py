@@ -1,8 +1,10 @@
-"""Runs N vehicles in one asyncio loop: fixed physics steps on simulated time, the sockets,
+"""Runs N vehicles in one asyncio loop: fixed physics steps on simulated time, the ports,
 and the truth (tracks, separation). Usable from a test thread or inside a running loop.
 
-Vehicle behaviour runs on the simulated clock (`speedup` times wall time, in fixed steps);
-link-protocol timers run on `wall_clock` (time.monotonic unless a test injects another)."""
+Vehicle behaviour runs on the simulated clock (`speedup` times the loop's time, in fixed
+steps); link-protocol timers run on `wall_clock` (the running loop's clock unless a test
+injects another). On a `VirtualTimeLoop`, with in-memory ports (`transport="memory"`),
+the vehicles and the ground station share one virtual clock: a flight replays exactly."""
 
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from .clock import DEFAULT_STEP_S, SimClock
+from .clock import DEFAULT_STEP_S, SimClock, loop_time
 from .faults import Faults
 from .flight import AIRBORNE_ABOVE_M
 from .geo import LocalFrame
@@ -25,7 +27,14 @@ from .kinematics import PointMassFleet
 from .mission_item import MissionItem
 from .snapshot import VehicleState
 from .track import Separation, SeparationMonitor, TrackPoint, TrackRecorder
-from .transport import UdpOutput, connection_string, open_endpoint, parse_output
+from .transport import (
+    MemoryPort,
+    MemoryServer,
+    UdpOutput,
+    connection_string,
+    open_endpoint,
+    parse_output,
+)
 from .vehicle import Vehicle, VehicleConfig
 
 T = TypeVar("T")
@@ -33,6 +42,8 @@ T = TypeVar("T")
 TRACK_RATE_HZ = 10.0
 CALL_TIMEOUT_S = 10.0
 MIN_SLEEP_S = 0.001
+MEMORY_BASE_PORT = 5760
+"""Nominal ports of in-memory vehicles with no port of their own: 5760 + 10 (i - 1), as SITL."""
 
 
 class Simulator:
@@ -47,7 +58,7 @@ class Simulator:
         stream_by_default: bool = False,
         step_s: float = DEFAULT_STEP_S,
         track_log: Path | str | None = None,
-        wall_clock: Callable[[], float] = time.monotonic,
+        wall_clock: Callable[[], float] = loop_time,
     ) -> None:
         sysids = [config.sysid for config in vehicles]
         if not sysids:
@@ -93,10 +104,13 @@ class Simulator:
         """Open every vehicle's socket and start stepping (inside the running loop)."""
         self._loop = asyncio.get_running_loop()
         self._loop_thread = threading.get_ident()
-        for vehicle in self._vehicles.values():
+        for index, vehicle in enumerate(self._vehicles.values()):
             config = vehicle.config
+            port = config.port
+            if config.transport == "memory" and not port:
+                port = MEMORY_BASE_PORT + 10 * index
             vehicle.endpoint = await open_endpoint(
-                config.transport, self.host, config.port, vehicle.on_packet
+                config.transport, self.host, port, vehicle.on_packet
             )
             vehicle.outputs = [await self._output(text, vehicle) for text in config.outputs]
         self._stopping = False
@@ -198,6 +212,10 @@ class Simulator:
     def sysids(self) -> list[int]:
         return list(self._vehicles)
 
+    def ports(self) -> list[int]:
+        """Every vehicle's port (nominal for in-memory vehicles), once running."""
+        return [v.endpoint.port for v in self._vehicles.values() if v.endpoint is not None]
+
     def port(self, sysid: int) -> int:
         endpoint = self._vehicle(sysid).endpoint
         if endpoint is None:
@@ -207,6 +225,22 @@ class Simulator:
     def connection_string(self, sysid: int) -> str:
         """How a pymavlink client reaches the vehicle's own server (`udpout:` or `tcp:`)."""
         return connection_string(self._vehicle(sysid).config.transport, self.host, self.port(sysid))
+
+    def memory_port(self, sysid: int) -> MemoryPort:
+        """A new in-memory connection to a `transport="memory"` vehicle (on the loop)."""
+        endpoint = self._vehicle(sysid).endpoint
+        if not isinstance(endpoint, MemoryServer):
+            raise RuntimeError(f"vehicle {sysid} has no in-memory port (is it running?)")
+        return endpoint.connect()
+
+    def memory_port_at(self, port: int) -> MemoryPort:
+        """A new in-memory connection to the vehicle serving nominal `port`;
+        ConnectionRefusedError if none does, as a TCP connect would be refused."""
+        for vehicle in self._vehicles.values():
+            endpoint = vehicle.endpoint
+            if isinstance(endpoint, MemoryServer) and endpoint.port == port:
+                return endpoint.connect()
+        raise ConnectionRefusedError(f"no simulated vehicle serves port {port}")
 
     def output_addresses(self) -> list[tuple[str, int]]:
         """Every `--out` ground-station address the vehicles send to."""

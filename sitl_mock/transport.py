@@ -1,20 +1,25 @@
-"""Sockets on the asyncio loop: a UDP endpoint that answers every recent peer, a TCP server
-that accepts several clients, and a UDP output that sends to a listening ground station
-(shared by every vehicle that names it). All hand raw bytes and a link key to callbacks.
+"""The vehicles' ports on the asyncio loop: a UDP endpoint that answers every recent peer,
+a TCP server that accepts several clients, a UDP output that sends to a listening ground
+station (shared by every vehicle that names it), and an in-memory server whose clients
+are plugged straight into a ground station's in-memory transport (a flight on one
+virtual clock, with no sockets). All hand raw bytes and a link key to callbacks.
 
-The peer list expires on wall-clock time: it is a socket matter, not vehicle behaviour."""
+The UDP peer list expires on the loop's clock: it is a socket matter, not vehicle
+behaviour."""
 
 from __future__ import annotations
 
 import asyncio
-import time
+import itertools
 from collections.abc import Callable, Hashable
 from typing import Protocol
+
+from .clock import loop_time
 
 PacketHandler = Callable[[bytes, Hashable], None]
 
 UDP_PEER_TIMEOUT_S = 10.0
-"""Wall seconds a UDP peer keeps receiving after its last packet (a socket-level matter)."""
+"""Seconds a UDP peer keeps receiving after its last packet (a socket-level matter)."""
 TCP_MAX_BUFFER = 1 << 20
 """Bytes queued for a slow TCP client before its packets are dropped (as a radio would)."""
 
@@ -49,7 +54,7 @@ class UdpEndpoint(asyncio.DatagramProtocol):
         self.port = transport.get_extra_info("sockname")[1]
 
     def datagram_received(self, data: bytes, addr: tuple) -> None:
-        self._peers[addr] = time.monotonic()
+        self._peers[addr] = loop_time()
         self._on_packet(data, ("udp", addr))
 
     def error_received(self, exc: Exception) -> None:
@@ -58,7 +63,7 @@ class UdpEndpoint(asyncio.DatagramProtocol):
     def send(self, data: bytes) -> None:
         if self._transport is None or not self._peers:
             return
-        cutoff = time.monotonic() - UDP_PEER_TIMEOUT_S
+        cutoff = loop_time() - UDP_PEER_TIMEOUT_S
         for addr, seen in list(self._peers.items()):
             if seen < cutoff:
                 del self._peers[addr]
@@ -118,6 +123,77 @@ class TcpEndpoint:
             writer.close()
         if self._server is not None:
             await asyncio.wait_for(self._server.wait_closed(), timeout=2.0)
+
+
+class MemoryPort:
+    """One client's in-memory connection to a vehicle, as a TCP connection would be: what
+    the client sends reaches the vehicle, and what the vehicle sends reaches the client,
+    each on a later loop iteration (never inside its sender)."""
+
+    def __init__(self, server: MemoryServer, key: Hashable) -> None:
+        self._server = server
+        self._key = key
+        self._receiver: Callable[[bytes], None] | None = None
+        self.closed = False
+
+    def set_receiver(self, receiver: Callable[[bytes], None]) -> None:
+        self._receiver = receiver
+
+    def send(self, data: bytes) -> None:
+        """From the client to the vehicle."""
+        if not self.closed and not self._server.closed:
+            asyncio.get_running_loop().call_soon(self._server.arrive, bytes(data), self._key)
+
+    def deliver(self, data: bytes) -> None:
+        """From the vehicle to the client."""
+        if not self.closed and self._receiver is not None:
+            asyncio.get_running_loop().call_soon(self._receive, data)
+
+    def _receive(self, data: bytes) -> None:
+        if not self.closed and self._receiver is not None:
+            self._receiver(data)
+
+    def close(self) -> None:
+        self.closed = True
+        self._server.forget(self._key)
+
+
+class MemoryServer:
+    """A vehicle's in-memory server: any number of clients connect (`connect`), each gets
+    everything the vehicle sends, as from its TCP server. `port` is nominal (the one the
+    vehicle would serve on), so a ground station can name it in a connection string."""
+
+    _ids = itertools.count(1)
+
+    def __init__(self, port: int, on_packet: PacketHandler) -> None:
+        self.port = port
+        self._on_packet = on_packet
+        self._clients: dict[Hashable, MemoryPort] = {}
+        self.closed = False
+
+    def connect(self) -> MemoryPort:
+        if self.closed:
+            raise ConnectionRefusedError(f"the vehicle's port {self.port} is closed")
+        key = ("memory", next(self._ids))
+        port = self._clients[key] = MemoryPort(self, key)
+        return port
+
+    def arrive(self, data: bytes, key: Hashable) -> None:
+        if not self.closed and key in self._clients:
+            self._on_packet(data, key)
+
+    def forget(self, key: Hashable) -> None:
+        self._clients.pop(key, None)
+
+    def send(self, data: bytes) -> None:
+        for client in list(self._clients.values()):
+            client.deliver(data)
+
+    async def close(self) -> None:
+        self.closed = True
+        for client in list(self._clients.values()):
+            client.closed = True
+        self._clients.clear()
 
 
 class UdpOutput(asyncio.DatagramProtocol):
@@ -180,9 +256,11 @@ async def open_endpoint(kind: str, host: str, port: int, on_packet: PacketHandle
         return await UdpEndpoint.open(host, port, on_packet)
     if kind == "tcp":
         return await TcpEndpoint.open(host, port, on_packet)
-    raise ValueError(f"transport must be 'udp' or 'tcp', got {kind!r}")
+    if kind == "memory":
+        return MemoryServer(port, on_packet)
+    raise ValueError(f"transport must be 'udp', 'tcp' or 'memory', got {kind!r}")
 
 
 def connection_string(kind: str, host: str, port: int) -> str:
-    """How a pymavlink client reaches the endpoint."""
+    """How a pymavlink client reaches the endpoint (a memory server stands in for TCP)."""
     return f"udpout:{host}:{port}" if kind == "udp" else f"tcp:{host}:{port}"

@@ -3,15 +3,15 @@ mission and command handlers, and sends heartbeats and telemetry.
 
 Two clocks drive it. Vehicle behaviour (physics, boot and readiness, idle disarm,
 telemetry rates) runs on simulated time, `clock`. Link-protocol timers (the mission
-protocol's re-requests and cancel, the command retry window) run on wall-clock time,
-`wall`, as a real autopilot's do: a ground station's step timeouts are wall-clock too,
-so a speed-up must not shrink them.
+protocol's re-requests and cancel, the command retry window) run on the loop's clock,
+`wall`, as a real autopilot's run on its wall clock: a ground station's step timeouts run
+on its own clock too, so a speed-up must not shrink them. (On a virtual-time loop both
+clocks are the one virtual clock.)
 """
 
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable, Hashable
 from typing import ClassVar, TypeVar
 
@@ -19,6 +19,7 @@ import numpy as np
 
 from . import messages
 from .boot import BootSequence
+from .clock import loop_time
 from .codec import Decoder, Encoder, Message, Sender, mavlink
 from .commands import Command, CommandHandler
 from .faults import Faults, FaultyLink
@@ -55,7 +56,7 @@ class Vehicle:
         clock: Callable[[], float],
         rng: np.random.Generator,
         stream_by_default: bool,
-        wall: Callable[[], float] = time.monotonic,
+        wall: Callable[[], float] = loop_time,
     ) -> None:
         self.config = config
         self.sysid = config.sysid

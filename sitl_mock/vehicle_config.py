@@ -12,7 +12,7 @@ from .transport import parse_output
 
 DEFAULT_HOME = (47.3977, 8.5456, 488.0)
 PX4_ESTIMATE_S = 5.0
-TRANSPORTS = ("udp", "tcp")
+TRANSPORTS = ("udp", "tcp", "memory")
 KEY_BYTES = 32
 
 
@@ -26,7 +26,8 @@ class VehicleConfig:
     """lat, lon (degrees), alt (metres AMSL)."""
     autopilot: str = "ardupilot"
     transport: str = "udp"
-    """The vehicle's own server: "udp" (answers whoever speaks first) or "tcp" (as SITL)."""
+    """The vehicle's own server: "udp" (answers whoever speaks first), "tcp" (as SITL) or
+    "memory" (no socket: clients connect through `Simulator.memory_port`, on one loop)."""
     faults: Faults = field(default_factory=Faults)
     mission_capacity: int = DEFAULT_CAPACITY
     estimate_delay_s: float | None = None
@@ -46,7 +47,7 @@ class VehicleConfig:
         if self.autopilot not in FLAVOURS:
             raise ValueError(f"autopilot must be one of {sorted(FLAVOURS)}, got {self.autopilot!r}")
         if self.transport not in TRANSPORTS:
-            raise ValueError(f"transport must be 'udp' or 'tcp', got {self.transport!r}")
+            raise ValueError(f"transport must be one of {TRANSPORTS}, got {self.transport!r}")
         if self.signing_key is not None and len(self.signing_key) != KEY_BYTES:
             raise ValueError(f"signing_key must be {KEY_BYTES} bytes, got {len(self.signing_key)}")
         for output in self.outputs:

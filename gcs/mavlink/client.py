@@ -17,6 +17,7 @@ from gcs.mavlink.connection import MavConnection, Message, Signing
 from gcs.mavlink.errors import ConnectTimeoutError
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.telemetry import TelemetryStreams
+from gcs.mavlink.transport import TransportOpener, open_transport
 
 NOT_AUTOPILOT_TYPES = frozenset(
     {
@@ -35,9 +36,10 @@ async def connect(
     sysid: int | None = None,
     settings: LinkSettings | None = None,
     signing: Signing | None = None,
+    opener: TransportOpener = open_transport,
 ) -> VehicleLink:
     """Open `url` and the link to the autopilot `sysid` (the first one heard if None)."""
-    connection = await MavConnection.open(url, signing=signing)
+    connection = await MavConnection.open(url, signing=signing, opener=opener)
     try:
         return await attach(connection, sysid=sysid, settings=settings, owns=True)
     except BaseException:

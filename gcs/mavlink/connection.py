@@ -23,7 +23,7 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.endpoint import Endpoint
-from gcs.mavlink.transport import ByteTransport, Peer, open_transport
+from gcs.mavlink.transport import ByteTransport, Peer, TransportOpener, open_transport
 
 GCS_SYSID = 255
 GCS_COMPID = mavlink2.MAV_COMP_ID_MISSIONPLANNER  # 190, as QGroundControl
@@ -99,10 +99,16 @@ class MavConnection:
         self._heartbeat = asyncio.ensure_future(self._send_heartbeats()) if heartbeat else None
 
     @classmethod
-    async def open(cls, url: str | Endpoint, *, signing: Signing | None = None) -> MavConnection:
-        """Open the socket a connection string names."""
+    async def open(
+        cls,
+        url: str | Endpoint,
+        *,
+        signing: Signing | None = None,
+        opener: TransportOpener = open_transport,
+    ) -> MavConnection:
+        """Open the transport a connection string names (a socket, unless `opener` says)."""
         endpoint = url if isinstance(url, Endpoint) else Endpoint.parse(url)
-        transport = await open_transport(endpoint)
+        transport = await opener(endpoint)
         return cls(transport, name=str(endpoint), signing=signing)
 
     @property

@@ -16,7 +16,6 @@ retried; a link loss or reboot ends the exchange at once with its own error.
 from __future__ import annotations
 
 import asyncio
-import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -69,13 +68,14 @@ class _Stall:
 
     def __init__(self, limit_s: float) -> None:
         self.limit_s = limit_s
-        self.since = time.monotonic()
+        self._loop = asyncio.get_running_loop()
+        self.since = self._loop.time()
 
     def progressed(self) -> None:
-        self.since = time.monotonic()
+        self.since = self._loop.time()
 
     def exceeded(self) -> bool:
-        return time.monotonic() - self.since > self.limit_s
+        return self._loop.time() - self.since > self.limit_s
 
 
 class MissionClient:
@@ -91,13 +91,14 @@ class MissionClient:
     async def upload(self, mission: Mission, *, verify: bool = True) -> UploadResult:
         """Write `mission`, then read it back and compare item by item (failure mode 6)."""
         self._check_flavour(mission)
-        started = time.perf_counter()
+        loop = asyncio.get_running_loop()
+        started = loop.time()
         async with self._busy:
             await self._until_booted()
             resends = await self._upload_with_retry(mission.items)
             if verify and mission.items:
                 self._verify(mission, await self._download())
-        seconds = time.perf_counter() - started
+        seconds = loop.time() - started
         return UploadResult(self.link.sysid, len(mission), seconds, resends, verify)
 
     async def _until_booted(self) -> None:

@@ -1,8 +1,11 @@
-"""Byte transports under a MAVLink connection: UDP, TCP, and an in-memory pair for tests.
+"""Byte transports under a MAVLink connection: UDP, TCP, and in memory.
 
 A transport moves raw bytes; it knows nothing of MAVLink. The connection above it is
 handed one (`MavConnection(transport)`), as httpx's client is handed a transport, so the
-link, command and mission-protocol code runs unchanged over sockets or in memory.
+link, command and mission-protocol code runs unchanged over sockets or in memory. Who
+opens transports for connection strings is injected too (`TransportOpener`): sockets in
+production; in a simulated flight, in-memory ports of simulated vehicles, so that the
+ground station and the vehicles run on one virtual clock.
 
 Sockets bind where the connection string says and talk only to whom it names:
 - `udpout:HOST:PORT` binds loopback when HOST is loopback (every interface otherwise,
@@ -20,7 +23,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
+from typing import Protocol
 
 from gcs.mavlink.endpoint import Endpoint
 from gcs.mavlink.errors import LinkError
@@ -61,32 +65,64 @@ class ByteTransport(ABC):
     def close(self) -> None: ...
 
 
-class MemoryTransport(ByteTransport):
-    """One end of an in-memory pair: what one end sends, the other receives, on the next
-    loop iteration (as from a socket, so no handler runs inside its sender)."""
+class MemoryPort(Protocol):
+    """The far end of an in-memory link: a simulated vehicle's port (sitl_mock's), or the
+    other end of a `MemoryTransport.pair`. It delivers on a later loop iteration."""
 
-    def __init__(self) -> None:
+    def send(self, data: bytes) -> None: ...
+
+    def set_receiver(self, receiver: Callable[[bytes], None]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class MemoryTransport(ByteTransport):
+    """Bytes to and from an in-memory port, arriving on a later loop iteration (as from a
+    socket, so no handler runs inside its sender)."""
+
+    def __init__(self, port: MemoryPort) -> None:
         super().__init__()
-        self.other: MemoryTransport | None = None
+        self._port = port
         self.closed = False
         self.sent = 0
+        port.set_receiver(self._arrive)
 
     @classmethod
     def pair(cls) -> tuple[MemoryTransport, MemoryTransport]:
-        a, b = cls(), cls()
+        """Two transports wired to each other (a scripted peer on the far end)."""
+        a, b = _WireEnd(), _WireEnd()
         a.other, b.other = b, a
-        return a, b
+        return cls(a), cls(b)
 
     def send(self, data: bytes, peer: Peer = None) -> None:
-        other = self.other
-        if self.closed or other is None or other.closed:
-            return
-        self.sent += 1
-        asyncio.get_running_loop().call_soon(other._arrive, bytes(data))
+        if not self.closed:
+            self.sent += 1
+            self._port.send(bytes(data))
 
     def _arrive(self, data: bytes) -> None:
         if not self.closed:
             self.deliver(data, None)
+
+    def close(self) -> None:
+        self.closed = True
+        self._port.close()
+
+
+class _WireEnd:
+    """One end of `MemoryTransport.pair`'s wire."""
+
+    def __init__(self) -> None:
+        self.other: _WireEnd | None = None
+        self.receiver: Callable[[bytes], None] | None = None
+        self.closed = False
+
+    def set_receiver(self, receiver: Callable[[bytes], None]) -> None:
+        self.receiver = receiver
+
+    def send(self, data: bytes) -> None:
+        other = self.other
+        if other is not None and not other.closed and other.receiver is not None:
+            asyncio.get_running_loop().call_soon(other.receiver, data)
 
     def close(self) -> None:
         self.closed = True
@@ -231,6 +267,10 @@ class TcpTransport(ByteTransport):
         if self._transport is not None:
             self._transport.close()
             self._transport = None
+
+
+TransportOpener = Callable[[Endpoint], Awaitable[ByteTransport]]
+"""Opens the transport a connection string names (`open_transport`: sockets)."""
 
 
 async def open_transport(endpoint: Endpoint) -> ByteTransport:

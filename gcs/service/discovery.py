@@ -20,14 +20,21 @@ from gcs.mavlink.connection import MavConnection
 from gcs.mavlink.endpoint import Endpoint
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink.transport import TransportOpener, open_transport
 
 log = logging.getLogger("mvo_gcs.discovery")
 
 
 class Discovery:
-    def __init__(self, url: str, settings: LinkSettings | None = None) -> None:
+    def __init__(
+        self,
+        url: str,
+        settings: LinkSettings | None = None,
+        opener: TransportOpener = open_transport,
+    ) -> None:
         self.endpoint = Endpoint.parse(url)
         self.settings = settings or LinkSettings()
+        self._opener = opener
         self.connection: MavConnection | None = None
         self.links: dict[int, VehicleLink] = {}
         self._attaching: dict[int, asyncio.Task[None]] = {}
@@ -40,7 +47,7 @@ class Discovery:
     async def start(self) -> None:
         """Listen; a port another program holds is reported, not fatal."""
         try:
-            self.connection = await MavConnection.open(self.endpoint)
+            self.connection = await MavConnection.open(self.endpoint, opener=self._opener)
         except GcsError as exc:
             self.error = f"not listening on {self.url}: {exc}"
             log.warning("vehicle discovery is off: %s", self.error)

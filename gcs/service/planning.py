@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gcs.service.metrics import ServiceMetrics
-from gcs.service.planning_pool import JobProgress, PlanCancelled, PlanningPool
+from gcs.service.planning_pool import JobProgress, PlanCancelled, PlanRunner
 from gcs.service.states import JobState, StateConflict
 from gcs.service.storage import JobRepository, PlanRepository, ScenarioRepository
 from gcs.service.storage.tables import JobRow, PlanRow
@@ -31,7 +31,7 @@ class PlanningService:
     plans: PlanRepository
     jobs: JobRepository
     metrics: ServiceMetrics
-    pool: PlanningPool | None = None
+    pool: PlanRunner | None = None
     _tasks: dict[str, asyncio.Task[None]] = field(default_factory=dict)
     _watchers: dict[str, set[asyncio.Queue[JobRow]]] = field(default_factory=dict)
     _reports: set[asyncio.Task[None]] = field(default_factory=set)  # progress being stored

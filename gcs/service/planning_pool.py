@@ -4,6 +4,11 @@ Planning is CPU-bound numpy work that holds the GIL for long stretches, so it ru
 in processes, never on the service's event loop. Workers report progress through a
 manager queue (throttled, so a fast plan does not flood it) and look at a shared
 set of cancelled job ids between optimizer iterations.
+
+`ThreadPlanner` (`plan_workers = 0`) plans in a thread of the service's own process
+instead: no processes to start, and a simulated flight on a virtual clock stands still
+while it plans (the tests' in-process service). It shares the GIL with the event loop,
+so a long plan slows the vehicle links: it is not for a service flying real vehicles.
 """
 
 from __future__ import annotations
@@ -16,10 +21,10 @@ import queue
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from multiprocessing.managers import SyncManager
-from typing import Any
+from typing import Any, Protocol
 
 from planner.pipeline import PlannerSettings, PlanProgress, plan
 from planner.scenario import load_scenario
@@ -42,6 +47,22 @@ class JobProgress:
 
 
 ProgressSink = Callable[[JobProgress], None]
+
+
+class PlanRunner(Protocol):
+    """Where plans are computed: worker processes (`PlanningPool`) or a thread."""
+
+    def start(self) -> None: ...
+
+    def submit(
+        self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings
+    ) -> asyncio.Future[dict[str, Any]]: ...
+
+    def cancel(self, job_id: str) -> None: ...
+
+    def forget(self, job_id: str) -> None: ...
+
+    def shutdown(self) -> None: ...
 
 
 class PlanningPool:
@@ -99,6 +120,48 @@ class PlanningPool:
                 return  # the manager is gone: the service is stopping
             if self._loop is not None and not self._loop.is_closed():
                 self._loop.call_soon_threadsafe(self._on_progress, JobProgress(*item))
+
+
+class ThreadPlanner:
+    """The same interface as `PlanningPool`, planning in one thread of this process."""
+
+    def __init__(self, on_progress: ProgressSink) -> None:
+        self._on_progress = on_progress
+        self._cancelled: dict[str, bool] = {}
+        self._threads = ThreadPoolExecutor(1, thread_name_prefix="planning")
+        self._loop: asyncio.AbstractEventLoop | None = None
+
+    def start(self) -> None:
+        self._loop = asyncio.get_running_loop()
+
+    def submit(
+        self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings
+    ) -> asyncio.Future[dict[str, Any]]:
+        assert self._loop is not None, "start() first"
+        return self._loop.run_in_executor(
+            self._threads, run_plan, job_id, scenario, asdict(settings), self, self._cancelled
+        )
+
+    def put(self, item: tuple[Any, ...]) -> None:
+        """A progress report from the planning thread (the worker's queue interface)."""
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(self._on_progress, JobProgress(*item))
+
+    def cancel(self, job_id: str) -> None:
+        self._cancelled[job_id] = True
+
+    def forget(self, job_id: str) -> None:
+        self._cancelled.pop(job_id, None)
+
+    def shutdown(self) -> None:
+        self._cancelled.update(dict.fromkeys(self._cancelled, True))
+        self._threads.shutdown(wait=False, cancel_futures=True)
+
+
+def planner_for(workers: int, on_progress: ProgressSink) -> PlanRunner:
+    """Worker processes, or (0 workers) a thread of this process."""
+    return PlanningPool(workers, on_progress) if workers > 0 else ThreadPlanner(on_progress)
 
 
 def exit_with_parent(owner_pid: int) -> None:

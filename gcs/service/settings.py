@@ -28,7 +28,13 @@ class Settings(BaseSettings):
         description="Host header names (and WebSocket origins) the service answers to; "
         "the bind address is added when it is a specific one",
     )
-    plan_workers: int = Field(default=2, ge=1, le=64, description="planning processes")
+    plan_workers: int = Field(
+        default=2,
+        ge=0,
+        le=64,
+        description="planning processes; 0 plans in a thread of the service (tests, demos: "
+        "it shares the event loop's processor time, so not beside real vehicles)",
+    )
     inline_plan_wait_s: float = Field(
         default=2.0, ge=0, le=60, description="how long a plan request waits before it answers 202"
     )

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +18,7 @@ from gcs.mavlink import client
 from gcs.mavlink.connection import Signing
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import LinkSettings, VehicleLink
+from gcs.mavlink.transport import TransportOpener, open_transport
 from gcs.mavlink.vehicle_state import VehicleState
 from gcs.service.discovery import Discovery
 from gcs.service.metrics import ServiceMetrics
@@ -51,9 +51,11 @@ class VehicleRegistry:
         metrics: ServiceMetrics,
         settings: LinkSettings | None = None,
         discovery: Discovery | None = None,
+        opener: TransportOpener = open_transport,
     ) -> None:
         self._metrics = metrics
         self._settings = settings or LinkSettings()
+        self._opener = opener
         self._entries: dict[str, _Entry] = {}
         self.discovery = discovery
         self.registering = asyncio.Lock()  # one registration at a time: its duplicate check holds
@@ -129,7 +131,7 @@ class VehicleRegistry:
             try:
                 entry.link = await client.connect(
                     entry.connection, sysid=entry.sysid, settings=self._settings,
-                    signing=entry.signing,
+                    signing=entry.signing, opener=self._opener,
                 )  # fmt: skip
             except (GcsError, OSError) as exc:
                 entry.last_error = f"cannot connect to {entry.connection}: {exc}"
@@ -175,6 +177,7 @@ def describe(link: VehicleLink) -> dict[str, Any]:
     """A vehicle's live state as the API shows it."""
     state = link.state
     position = state.position
+    now = asyncio.get_running_loop().time()
     return {
         "online": state.link_up,
         "sysid": state.sysid,
@@ -192,7 +195,7 @@ def describe(link: VehicleLink) -> dict[str, Any]:
         "mission_total": state.mission_total,
         "mission_state": state.mission_state,
         "ignored_packets": link.connection.dropped,
-        "seconds_since_heard": round(max(0.0, time.monotonic() - state.last_heard), 3)
+        "seconds_since_heard": round(max(0.0, now - state.last_heard), 3)
         if state.last_heard
         else None,
     }

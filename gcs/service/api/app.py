@@ -16,6 +16,7 @@ from starlette.routing import Route
 from gcs.mavlink.connection import Signing
 from gcs.mavlink.endpoint import EndpointError
 from gcs.mavlink.errors import GcsError
+from gcs.mavlink.transport import TransportOpener, open_transport
 from gcs.service.api.auth import ensure_token
 from gcs.service.api.deps import Services
 from gcs.service.api.request_guard import RequestGuard
@@ -30,7 +31,7 @@ from gcs.service.api.routers import (
 )
 from gcs.service.console import mount_console
 from gcs.service.flights.service import BadBindings, BadObject
-from gcs.service.planning_pool import PlanningPool
+from gcs.service.planning_pool import planner_for
 from gcs.service.settings import Settings
 from gcs.service.states import StateConflict
 from gcs.service.storage import Database, NotFound
@@ -46,7 +47,11 @@ Reading is open; every request that changes state needs `Authorization: Bearer <
 """
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
+def create_app(
+    settings: Settings | None = None, *, opener: TransportOpener = open_transport
+) -> FastAPI:
+    """The service. `opener` opens vehicles' connection strings: sockets, or in-memory
+    ports of simulated vehicles (a flight on one virtual clock, in the tests)."""
     settings = settings or Settings()
 
     @asynccontextmanager
@@ -57,12 +62,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if any(recovered.values()):
             log.warning("marked unfinished work from the last run as interrupted: %s", recovered)
         token, token_file = ensure_token(settings)
-        services = Services.build(settings, db)
+        services = Services.build(settings, db, opener)
         services.events.start()
         services.loop_lag.start()
         if services.discovery is not None:
             await services.discovery.start()
-        pool = PlanningPool(settings.plan_workers, services.planning.on_progress)
+        pool = planner_for(settings.plan_workers, services.planning.on_progress)
         pool.start()
         services.planning.pool = pool
         for vehicle in await services.vehicles.page(limit=10_000):

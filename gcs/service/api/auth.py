@@ -35,7 +35,7 @@ def ensure_token(settings: Settings) -> tuple[str, Path | None]:
     return token, path
 
 
-def require_token(
+async def require_token(
     request: Request,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)],
 ) -> None:

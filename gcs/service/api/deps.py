@@ -2,6 +2,8 @@
 
 `Services` is built once in the app's lifespan; a router names only the parts it uses
 (`ScenariosDep`, `FlightsDep`, `OperatorDep`, ...), as in FastAPI's full-stack template.
+Every dependency is a coroutine: FastAPI runs a plain function in a worker thread, a
+round trip through the thread pool per request for what is an attribute read.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from typing import Annotated, Any
 from fastapi import Depends
 from starlette.requests import HTTPConnection
 
+from gcs.mavlink.transport import TransportOpener, open_transport
 from gcs.service.api.auth import require_token
 from gcs.service.api.schemas import Problem
 from gcs.service.discovery import Discovery
@@ -55,12 +58,14 @@ class Services:
     discovery: Discovery | None
 
     @classmethod
-    def build(cls, settings: Settings, db: Database) -> Services:
+    def build(
+        cls, settings: Settings, db: Database, opener: TransportOpener = open_transport
+    ) -> Services:
         metrics = ServiceMetrics()
         scenarios, plans, jobs = ScenarioRepository(db), PlanRepository(db), JobRepository(db)
         vehicles, flight_records = VehicleRepository(db), FlightRepository(db)
-        discovery = discovery_for(settings)
-        registry = VehicleRegistry(metrics, discovery=discovery)
+        discovery = discovery_for(settings, opener)
+        registry = VehicleRegistry(metrics, discovery=discovery, opener=opener)
         events = EventWriter(flight_records)
         flights = FlightService(
             book=FlightBook(flight_records, events),
@@ -89,11 +94,11 @@ class Services:
         )
 
 
-def discovery_for(settings: Settings) -> Discovery | None:
+def discovery_for(settings: Settings, opener: TransportOpener = open_transport) -> Discovery | None:
     """The listening port, if configured; beyond loopback only when that is allowed."""
     if not settings.discovery_url:
         return None
-    discovery = Discovery(settings.discovery_url)
+    discovery = Discovery(settings.discovery_url, opener=opener)
     if not discovery.endpoint.is_loopback and not settings.listen_beyond_loopback:
         raise ValueError(
             f"discovery_url {settings.discovery_url} listens beyond this machine: set "
@@ -107,46 +112,50 @@ def get_services(connection: HTTPConnection) -> Services:
     return services
 
 
-ServicesDep = Annotated[Services, Depends(get_services)]
+async def _services(connection: HTTPConnection) -> Services:
+    return get_services(connection)
 
 
-def _settings(services: ServicesDep) -> Settings:
+ServicesDep = Annotated[Services, Depends(_services)]
+
+
+async def _settings(services: ServicesDep) -> Settings:
     return services.settings
 
 
-def _scenarios(services: ServicesDep) -> ScenarioRepository:
+async def _scenarios(services: ServicesDep) -> ScenarioRepository:
     return services.scenarios
 
 
-def _plans(services: ServicesDep) -> PlanRepository:
+async def _plans(services: ServicesDep) -> PlanRepository:
     return services.plans
 
 
-def _jobs(services: ServicesDep) -> JobRepository:
+async def _jobs(services: ServicesDep) -> JobRepository:
     return services.jobs
 
 
-def _vehicles(services: ServicesDep) -> VehicleRepository:
+async def _vehicles(services: ServicesDep) -> VehicleRepository:
     return services.vehicles
 
 
-def _flight_records(services: ServicesDep) -> FlightRepository:
+async def _flight_records(services: ServicesDep) -> FlightRepository:
     return services.flight_records
 
 
-def _planning(services: ServicesDep) -> PlanningService:
+async def _planning(services: ServicesDep) -> PlanningService:
     return services.planning
 
 
-def _registry(services: ServicesDep) -> VehicleRegistry:
+async def _registry(services: ServicesDep) -> VehicleRegistry:
     return services.registry
 
 
-def _flights(services: ServicesDep) -> FlightService:
+async def _flights(services: ServicesDep) -> FlightService:
     return services.flights
 
 
-def _operator(services: ServicesDep) -> OperatorCommands:
+async def _operator(services: ServicesDep) -> OperatorCommands:
     return services.operator
 
 

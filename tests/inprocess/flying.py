@@ -1,0 +1,132 @@
+"""Flying through the in-process service: a flight made, uploaded, started and waited on.
+
+Every wait is for a condition, bounded in the loop's virtual seconds; nothing sleeps to
+"let things settle", and nothing depends on how busy the machine is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import httpx
+
+from planner.cases import load_case
+from planner.scenario import Scenario
+from sitl_mock import Simulator
+from tests.inprocess.service import until
+
+
+@dataclass
+class Flight:
+    """A flight of a scenario bound to the vehicles of `sim`, made through the API."""
+
+    client: httpx.AsyncClient
+    sim: Simulator
+    scenario: Scenario
+    scenario_id: str
+    plan: dict[str, Any]
+    vehicle_ids: list[str]
+    id: str
+
+    @classmethod
+    async def make(
+        cls, client: httpx.AsyncClient, sim: Simulator, case: str | Scenario = "case-1"
+    ) -> Flight:
+        scenario = load_case(case) if isinstance(case, str) else case
+        answer = await client.post("/scenarios", json=scenario.model_dump(mode="json"))
+        assert answer.status_code == 201, answer.text
+        sid = answer.json()["id"]
+        planned = await client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30})
+        assert planned.status_code == 201, planned.text
+        plan = planned.json()
+        assert plan["plan"]["feasible"], plan
+        ids = [await register(client, sim.connection_string(s)) for s in sim.sysids]
+        flight = await bind(client, plan["id"], scenario, ids)
+        return cls(client, sim, scenario, sid, plan, ids, flight)
+
+    async def state(self) -> str:
+        return str((await self.client.get(f"/flights/{self.id}")).json()["state"])
+
+    async def post(self, action: str, **body: Any) -> httpx.Response:
+        return await self.client.post(f"/flights/{self.id}/{action}", json=body or None)
+
+    async def online(self) -> bool:
+        return all([await online(self.client, v) for v in self.vehicle_ids])
+
+    async def upload(self) -> dict[str, Any]:
+        """Upload once every vehicle is online (registration connects in the background)."""
+        await until(self.online, 30, "every vehicle online")
+        answer = await self.post("upload")
+        assert answer.status_code == 200, answer.text
+        body: dict[str, Any] = answer.json()
+        assert body["flight"]["state"] == "uploaded", body
+        return body
+
+    async def fly(self) -> None:
+        """Upload and start; back once the flight is flying."""
+        await self.upload()
+        answer = await self.post("start")
+        assert answer.status_code == 202, answer.text
+        await self.wait_state("flying", timeout=120)
+
+    async def wait_state(self, *states: str, timeout: float = 600) -> str:
+        async def reached() -> str | None:
+            state = await self.state()
+            return state if state in states else None
+
+        try:
+            return await until(reached, timeout, f"flight {self.id} {states}")
+        except AssertionError as exc:  # say where the flight is stuck
+            live = (await self.client.get(f"/flights/{self.id}/live-state")).json()
+            events = await self.events()
+            kinds = [(e["kind"], e["uav_id"]) for e in events][-20:]
+            raise AssertionError(f"{exc}; live state {live}; last events {kinds}") from None
+
+    async def events(self) -> list[dict[str, Any]]:
+        """Every stored event, page by page."""
+        events: list[dict[str, Any]] = []
+        while True:
+            params: dict[str, Any] = {"limit": 1000}
+            if events:
+                params["after"] = events[-1]["id"]
+            page = (await self.client.get(f"/flights/{self.id}/events", params=params)).json()
+            events += page
+            if len(page) < 1000:
+                return events
+
+    def modes(self) -> set[str]:
+        return {self.sim.state(k).mode for k in self.sim.sysids}
+
+    def airborne(self) -> bool:
+        return any(self.sim.state(k).alt > 1.0 for k in self.sim.sysids)
+
+
+async def register(client: httpx.AsyncClient, connection: str) -> str:
+    answer = await client.post("/vehicles", json={"connection": connection})
+    assert answer.status_code == 201, answer.text
+    return str(answer.json()["id"])
+
+
+async def bind(
+    client: httpx.AsyncClient, plan_id: str, scenario: Scenario, vehicle_ids: list[str]
+) -> str:
+    bindings = {u.id: v for u, v in zip(scenario.uavs, vehicle_ids, strict=True)}
+    answer = await client.post("/flights", json={"plan_id": plan_id, "bindings": bindings})
+    assert answer.status_code == 201, answer.text
+    return str(answer.json()["id"])
+
+
+async def live(client: httpx.AsyncClient, vehicle_id: str) -> dict[str, Any]:
+    body: dict[str, Any] = (await client.get(f"/vehicles/{vehicle_id}")).json()["live"]
+    return body
+
+
+async def online(client: httpx.AsyncClient, vehicle_id: str) -> bool:
+    return bool((await live(client, vehicle_id)).get("online"))
+
+
+def ground_speed(sim: Simulator, sysid: int) -> float:
+    north, east, _ = sim.state(sysid).velocity_ned
+    return math.hypot(north, east)
