@@ -86,6 +86,7 @@ class VehicleLink:
         self._last_heartbeat: float | None = None
         self.heartbeat_period_s: float | None = None
         self.gap_began: float | None = None  # loop time the latest heartbeat gap began
+        self.last_sent: float | None = None  # loop time we last sent the vehicle anything
         self._received(heartbeat)
         connection.attach(self.sysid, self._received)
         self.spawn(self._watchdog())
@@ -98,6 +99,7 @@ class VehicleLink:
         return self.connection.codec
 
     def send(self, msg: Message) -> None:
+        self.last_sent = self._loop.time()
         self.connection.send(msg, self.sysid)
 
     # --- receiving ---------------------------------------------------------------------

@@ -105,6 +105,11 @@ class VehicleRegistry:
         entry = self._entries.get(vehicle_id)
         return entry.link.state if entry is not None and entry.link is not None else None
 
+    def last_sent(self, vehicle_id: str) -> float | None:
+        """Loop time the ground station last sent the vehicle anything (None: never)."""
+        entry = self._entries.get(vehicle_id)
+        return entry.link.last_sent if entry is not None and entry.link is not None else None
+
     def is_down(self, vehicle_id: str) -> bool:
         """Heard lately, disarmed and on the ground."""
         state = self.vehicle_state(vehicle_id)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Iterable
 from typing import Any, Literal
 
 from gcs.fleet.crew import Fallback
@@ -33,6 +33,9 @@ log = logging.getLogger("mvo_gcs.operator")
 F = FlightState
 VehicleAction = Literal["hold", "land", "rtl", "continue"]
 DOWN_POLL_S = 0.25
+SETTLE_S = 4.0
+"""How long every vehicle must have been down, and nothing sent to any, before a flight
+closes: longer than a packet may take on a link that is still up (its timeout)."""
 
 
 class OperatorCommands:
@@ -73,22 +76,17 @@ class OperatorCommands:
             return _answers(row, outcomes, asked)
 
     async def hold(self, flight_id: str) -> list[VehicleAnswer]:
-        """The operator's fleet hold (also `/pause`): every vehicle stops where it is."""
+        """The operator's fleet hold (also `/pause`): every vehicle stops where it is. During
+        the start, or when a start goes ahead of it, the start is cancelled first."""
         asked = _now()
         slot = self.book.slot(flight_id)
-        row = await self.book.row(flight_id)
-        state = FlightState(row.state)
-        if state == F.STARTING:  # the start cannot go on with vehicles held: cancel it
-            async with slot.intervention():
-                await slot.preempt()
-                outcomes = await self._command_links(row, lambda a: a.hold())
-                await self.flights.to_interrupted(
-                    flight_id, "held by the operator during the start"
-                )
-                self.watch_until_down(flight_id)
-                return _answers(row, outcomes, asked)
+        if FlightState((await self.book.row(flight_id)).state) == F.STARTING:
+            return await self._hold_the_start(flight_id, asked)
         async with slot.serial():
-            state = await self.book.state(flight_id)
+            row = await self.book.row(flight_id)  # afresh: a start may have gone first
+            state = FlightState(row.state)
+            if state == F.STARTING:
+                return await self._hold_the_start(flight_id, asked)
             active = self.book.active.get(flight_id)
             if state in (F.FLYING, F.PAUSED) and active is not None:
                 outcomes = await active.fleet.pause()
@@ -98,6 +96,19 @@ class OperatorCommands:
                 outcomes = await self._command_links(row, lambda a: a.hold())
             else:
                 raise StateConflict(f"flight {flight_id} is {state.value}: nothing to hold")
+            return _answers(row, outcomes, asked)
+
+    async def _hold_the_start(self, flight_id: str, asked: float) -> list[VehicleAnswer]:
+        """The start cannot go on with vehicles held: stop it (and wait until it has
+        stopped) before holding every vehicle; the flight is then interrupted and stays
+        open until every vehicle is down."""
+        slot = self.book.slot(flight_id)
+        async with slot.intervention():
+            row = await self.book.row(flight_id)
+            await slot.preempt()
+            outcomes = await self._command_links(row, lambda a: a.hold())
+            await self.flights.to_interrupted(flight_id, "held by the operator during the start")
+            self.watch_until_down(flight_id)
             return _answers(row, outcomes, asked)
 
     async def resume(self, flight_id: str) -> list[VehicleAnswer]:
@@ -170,18 +181,36 @@ class OperatorCommands:
 
     async def _until_down(self, flight_id: str) -> None:
         bindings = await self.book.bindings(flight_id)
+        down_since: float | None = None
         while True:
             state = await self.book.state(flight_id)
             if not state.is_open or state not in (F.ABORTING, F.INTERRUPTED):
                 break
-            if all(self.registry.is_down(vid) for vid in bindings.values()):
-                final = F.ABORTED if state == F.ABORTING else F.ENDED
-                with contextlib.suppress(StateConflict):
-                    await self.book.transition(flight_id, final, "every vehicle is down")
-                await self.flights.retire_when_down(flight_id)
-                break
+            if self._all_down(flight_id, bindings.values()):
+                down_since = _now() if down_since is None else down_since
+                if _now() - self._settled_since(down_since, bindings.values()) >= SETTLE_S:
+                    final = F.ABORTED if state == F.ABORTING else F.ENDED
+                    with contextlib.suppress(StateConflict):
+                        await self.book.transition(flight_id, final, "every vehicle is down")
+                    await self.flights.retire_when_down(flight_id)
+                    break
+            else:
+                down_since = None
             await asyncio.sleep(DOWN_POLL_S)
         self._watchers.pop(flight_id, None)
+
+    def _all_down(self, flight_id: str, vehicle_ids: Iterable[str]) -> bool:
+        """Every vehicle disarmed on the ground, and nothing of the flight still running
+        that could arm one (a start being cancelled, an upload)."""
+        if self.book.slot(flight_id).busy:
+            return False
+        return all(self.registry.is_down(vid) for vid in vehicle_ids)
+
+    def _settled_since(self, down_since: float, vehicle_ids: Iterable[str]) -> float:
+        """Since when "all down" counts: not before the last thing sent to any of the
+        vehicles, which may still be on its way (an ARM sent by a start just cancelled)."""
+        sent = [self.registry.last_sent(vid) for vid in vehicle_ids]
+        return max([down_since, *(t for t in sent if t is not None)])
 
     async def after_restart(self) -> None:
         """Every flight that was open when the service stopped is `interrupted` now:

@@ -181,7 +181,10 @@ class FlightService:
             async with self.book.claims:
                 await self.book.refuse_owned(row.bindings, flight_id)
                 row = await self.book.transition(flight_id, F.STARTING)
-            slot.start_runner(self._run(active))
+            try:
+                slot.start_runner(self._run(active))
+            except Preempted as exc:  # held or aborted between the state change and now
+                raise StateConflict(f"{exc}: nothing was armed") from None
             return row
 
     async def _run(self, active: ActiveFlight) -> None:

@@ -6,7 +6,8 @@ for it, so a client that hangs up does not leave half an operation behind. The l
 work a start sets going (arming, take-off, following the flight) is the flight's
 *runner*, which holds no turn: the operator can pause or abort while it runs.
 `preempt` cancels whatever operation and runner are going, so that an abort never
-waits behind them.
+waits behind them, and no runner may start after it: a start still on its way (between
+its state change and its runner) finds the flight pre-empted and arms nothing.
 """
 
 from __future__ import annotations
@@ -31,6 +32,9 @@ class FlightSlot:
         self._interventions = asyncio.Lock()
         self._operation: asyncio.Task[Any] | None = None
         self.runner: asyncio.Task[Any] | None = None
+        self.preempted = False
+        """An intervention cancelled this flight's work: it never starts a runner again
+        (every intervention leaves the flight in a state that cannot start)."""
 
     @contextlib.asynccontextmanager
     async def serial(self) -> AsyncIterator[None]:
@@ -60,6 +64,10 @@ class FlightSlot:
         return task.result()
 
     def start_runner(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]:
+        """Run the flight's runner; Preempted (and nothing runs) after an intervention."""
+        if self.preempted:
+            coro.close()
+            raise Preempted(f"flight {self.flight_id} was held or aborted while it started")
         self.runner = asyncio.ensure_future(coro)
         return self.runner
 
@@ -69,6 +77,7 @@ class FlightSlot:
 
     async def preempt(self) -> None:
         """Cancel the operation and the runner, and wait (bounded) until they unwind."""
+        self.preempted = True
         tasks = [t for t in (self._operation, self.runner) if t is not None and not t.done()]
         for task in tasks:
             task.cancel()

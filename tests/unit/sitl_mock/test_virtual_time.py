@@ -9,7 +9,7 @@ import time
 import pytest
 
 from sitl_mock import Simulator, VehicleConfig
-from sitl_mock.virtual_time import VirtualTimeLoop, run_virtual
+from sitl_mock.virtual_time import EXECUTOR_DELAY_S, VirtualTimeLoop, run_virtual
 
 
 def test_an_hour_of_sleeping_takes_no_real_time() -> None:
@@ -40,22 +40,28 @@ def test_a_timeout_fires_at_its_virtual_moment() -> None:
     assert run_virtual(main(), start=100.0) == 142.0
 
 
-def test_the_clock_stands_still_while_a_thread_works() -> None:
-    """A storage write or a plan in a thread takes no virtual time, however long it takes
-    in real time, so a timer set meanwhile cannot overtake it."""
-    release = threading.Event()
+def test_executor_work_runs_at_once_and_takes_no_virtual_time() -> None:
+    """A storage write or a plan handed to an executor runs on the loop's thread, taking
+    the loop's executor delay of virtual time however long it takes in real time, and its
+    outcome (a result or an exception) arrives where a thread's would."""
 
-    async def main() -> tuple[float, bool]:
+    def slow(fail: bool) -> str:
+        time.sleep(0.05)
+        if fail:
+            raise ValueError("refused")
+        return "stored"
+
+    async def main() -> tuple[str, str, float]:
         loop = asyncio.get_running_loop()
         ticker = asyncio.ensure_future(asyncio.sleep(0.01))  # a timer due very soon
-        threading.Timer(0.2, release.set).start()  # 0.2 real seconds of work
-        done = await loop.run_in_executor(None, release.wait, 10.0)
+        stored = await loop.run_in_executor(None, slow, False)
+        with pytest.raises(ValueError) as refused:
+            await asyncio.to_thread(slow, True)
         at = loop.time()
         await ticker
-        return at, done
+        return stored, str(refused.value), at
 
-    at, done = run_virtual(main())
-    assert done and at == 0.0
+    assert run_virtual(main()) == ("stored", "refused", 2 * EXECUTOR_DELAY_S)
 
 
 def test_the_same_program_replays_the_same_interleaving() -> None:
