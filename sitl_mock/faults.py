@@ -6,6 +6,7 @@ random choice comes from the vehicle's numpy Generator."""
 
 from __future__ import annotations
 
+import functools
 import heapq
 import itertools
 from dataclasses import dataclass, fields
@@ -73,8 +74,9 @@ class Faults:
             raise ValueError(f"reject_at must be one of {REJECT_POINTS}, got {self.reject_at!r}")
         object.__setattr__(self, "refuse_commands", frozenset(self.refuse_commands))
 
-    @property
+    @functools.cached_property
     def link_is_clean(self) -> bool:
+        """No loss, delay, duplication or reordering (asked on every step: worked out once)."""
         return all(getattr(self, f.name) == 0 for f in fields(self) if f.name not in VEHICLE_FAULTS)
 
 

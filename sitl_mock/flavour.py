@@ -67,6 +67,9 @@ class Flavour:
     it has not reached (its WP submode: a waypoint, a loiter, a landing's place), and
     GUIDED; anything else (a take-off, a descent, a stop at a waypoint, other modes) it
     answers FAILED. PX4 holds from any flying state."""
+    forgets_speed_in_auto: bool
+    """ArduCopter drops a DO_CHANGE_SPEED given as a command whenever it enters AUTO (after
+    a BRAKE, say) and flies at WP_SPD until the mission's next speed item; PX4 keeps it."""
 
     def new_params(self, sysid: int) -> ParameterSet:
         params = ParameterSet(self.param_defaults, bytewise=self.params_bytewise)
@@ -102,6 +105,7 @@ ARDUPILOT = Flavour(
     announces_items=True,
     sends_unasked=True,
     pauses_only_on_the_way=True,
+    forgets_speed_in_auto=True,
 )
 
 PX4 = Flavour(
@@ -132,6 +136,7 @@ PX4 = Flavour(
     announces_items=False,
     sends_unasked=False,
     pauses_only_on_the_way=False,
+    forgets_speed_in_auto=False,
 )
 
 FLAVOURS = {flavour.name: flavour for flavour in (ARDUPILOT, PX4)}

@@ -10,8 +10,8 @@ from dataclasses import dataclass, replace
 from .codec import mavlink
 from .flavour import Flavour
 from .kinematics import Body, NavLimits
-from .manoeuvres import TAKEOFF, Climb, Hold, Land, Manoeuvre, return_home
-from .mission_runner import ItemPlacer, MissionEvents, MissionRunner
+from .manoeuvres import TAKEOFF, Climb, Hold, Land, Manoeuvre, Stop, return_home
+from .mission_runner import ItemPlacer, MissionEvents, MissionRunner, MissionState
 from .mission_store import MissionStore
 from .modes import ARDUCOPTER_NAMES, REQUIRES_POSITION, FlightMode
 from .params import ParameterSet
@@ -111,6 +111,14 @@ class FlightController:
     @property
     def airborne(self) -> bool:
         return self._airborne
+
+    @property
+    def holding(self) -> bool:
+        """Told to stop where it is: a paused mission, a paused GUIDED or BRAKE (whether
+        still slowing down or hovering already)."""
+        if self.mode == FlightMode.AUTO:
+            return self.runner.state == MissionState.PAUSED
+        return isinstance(self._manoeuvre, (Hold, Stop))
 
     @property
     def landed_state(self) -> int:
@@ -339,6 +347,9 @@ class FlightController:
         if mode != FlightMode.AUTO:
             self.runner.stop()
         if mode == FlightMode.AUTO:
+            if self.flavour.forgets_speed_in_auto and self._cruise_override is not None:
+                self._cruise_override = None  # ArduCopter: ModeAuto::init clears it
+                self.apply_limits()
             if self.armed and (
                 self._airborne or not self.flavour.needs_mission_start or self._mission_start_given
             ):
@@ -347,6 +358,8 @@ class FlightController:
             if self.armed:
                 self._run(Climb(takeoff_alt or self._px4_takeoff_alt()), now)
         elif not self._airborne:
+            if self.armed and (mode == FlightMode.LAND or self.body.alt > 0):
+                self._run(Land(self.limits()), now)  # lifting off: back down, not on up
             return
         elif mode == FlightMode.RTL:
             self._run(
@@ -360,6 +373,8 @@ class FlightController:
             )
         elif mode == FlightMode.LAND:
             self._run(Land(self.limits()), now)
+        elif mode == FlightMode.BRAKE:
+            self._run(Stop(brake=True), now)
         else:
             self._run(Hold(), now)
 

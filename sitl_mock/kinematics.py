@@ -43,6 +43,13 @@ class NavLimits:
     land_speed: float = 0.5
     accept_radius: float = 2.0
     jerk: float = 1.0
+    stop_jerk: float = 5.0
+    """How fast the acceleration ramps when a pause or a brake stops the vehicle (ArduCopter
+    shapes a paused mission's speed, and BRAKE's, with its position controller's
+    PSC_JERK_NE, not the legs' S-curve jerk)."""
+    brake_accel: float = 0.3
+    """How hard a brake (ArduCopter's BRAKE mode) stops, per m/s of speed (it asks more the
+    faster it goes); a pause stops at `accel`."""
 
 
 @dataclass(frozen=True)
@@ -68,6 +75,11 @@ class PointMassFleet:
         self.cruise = np.full(n, 10.0)
         self.accel = np.full(n, 2.5)
         self.jerk = np.full(n, 1.0)
+        self.stop_jerk = np.full(n, 5.0)
+        self.brake_accel = np.full(n, 0.3)
+        self.quick_start = np.zeros(n, dtype=bool)
+        """The next leg from rest speeds up at the stopping jerk (a resumed pause picks up
+        its track speed that way, not along a new S-curve)."""
         self.climb = np.full(n, 2.5)
         self.descent = np.full(n, 1.5)
         self.vertical_accel = np.full(n, 1.0)
@@ -193,7 +205,11 @@ class PointMassFleet:
         distance = float(_distance(vector))
         if distance <= AT_TARGET_M:
             return None
-        profile = leg_profile(distance, entry_speed, self.cruise[i], self.accel[i], self.jerk[i])
+        up = self.stop_jerk[i] if self.quick_start[i] else None
+        self.quick_start[i] = False
+        profile = leg_profile(
+            distance, entry_speed, self.cruise[i], self.accel[i], self.jerk[i], up
+        )
         return vector / distance, profile
 
     def fly_leg(self, i: int, start: np.ndarray, entry_speed: float) -> None:
@@ -202,16 +218,19 @@ class PointMassFleet:
         if leg is not None:
             self.legs.add(i, self.time, *leg)
 
-    def brake_to_rest(self, i: int) -> None:
-        """Replace the legs flying with one slow-down along the velocity."""
+    def brake_to_rest(self, i: int, accel: float | None = None, jerk: float | None = None) -> None:
+        """Replace the legs flying with one slow-down along the velocity (at the legs'
+        acceleration and jerk unless told otherwise)."""
         self.base[i] = self.pos[i, :2]
         self.legs.on[i] = False
         self.blending[i] = False
         velocity = self.vel[i, :2].copy()
         speed = float(_distance(velocity))
         if speed > AT_TARGET_M:
-            stop = stopping_distance(speed, self.accel[i], self.jerk[i])
-            profile = leg_profile(stop, speed, speed, self.accel[i], self.jerk[i])
+            accel = self.accel[i] if accel is None else accel
+            jerk = self.jerk[i] if jerk is None else jerk
+            stop = stopping_distance(speed, accel, jerk)
+            profile = leg_profile(stop, speed, speed, accel, jerk)
             self.legs.add(i, self.time, velocity / speed, profile)
 
     def body(self, index: int) -> Body:
@@ -326,6 +345,7 @@ class Body:
     def apply_limits(self, limits: NavLimits) -> None:
         f, i = self._fleet, self.index
         f.cruise[i], f.accel[i], f.jerk[i] = limits.cruise_speed, limits.accel, limits.jerk
+        f.stop_jerk[i], f.brake_accel[i] = limits.stop_jerk, limits.brake_accel
         f.climb[i], f.descent[i] = limits.climb_rate, limits.descent_rate
         f.vertical_accel[i] = limits.vertical_accel
 
@@ -409,6 +429,26 @@ class Body:
         """Brake to a stop and stay there (at `alt`, default the current altitude)."""
         east, north = self.stopping_point()
         self.go_to(east, north, self.alt if alt is None else alt, radius=0.5)
+
+    def stop(self, brake: bool = False) -> None:
+        """Stop along the velocity and hover there: a paused mission slows at the legs'
+        acceleration, a brake at its own, both with the stopping jerk (ArduCopter:
+        AC_WPNav's pause shapes the track speed with PSC_JERK_NE; BRAKE mode stops at
+        BRAKE_MODE_DECEL_RATE_MSS)."""
+        f, i = self._fleet, self.index
+        speed = float(np.hypot(*f.vel[i, :2]))
+        accel = max(f.brake_accel[i] * speed, 0.1) if brake else f.accel[i]
+        f.brake_to_rest(i, accel, f.stop_jerk[i])
+        reach = stopping_distance(speed, accel, f.stop_jerk[i]) if speed > AT_TARGET_M else 0.0
+        direction = f.vel[i, :2] / speed if speed > AT_TARGET_M else np.zeros(2)
+        f.set_next_leg(i, None)
+        f.target[i] = (*(f.pos[i, :2] + direction * reach), self.alt)
+        f.radius[i] = 0.5
+        f.reached[i] = False
+
+    def pick_up(self) -> None:
+        """The next leg picks its speed up as a resumed pause does (at the stopping jerk)."""
+        self._fleet.quick_start[self.index] = True
 
     def place(self, east: float, north: float, alt: float = 0.0) -> None:
         """Teleport at rest (a reboot puts the vehicle back on its home)."""

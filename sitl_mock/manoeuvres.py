@@ -42,6 +42,21 @@ class Hold:
         return False
 
 
+class Stop:
+    """Stop along the velocity, as a paused mission or BRAKE does (`brake`), and hover."""
+
+    phase = IN_AIR
+
+    def __init__(self, brake: bool = False) -> None:
+        self.brake = brake
+
+    def start(self, body: Body, now: float) -> None:
+        body.stop(self.brake)
+
+    def update(self, body: Body, now: float) -> bool:
+        return False
+
+
 class Climb:
     """Vertical take-off to an altitude above home; done at once if already there."""
 

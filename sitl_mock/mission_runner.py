@@ -11,12 +11,16 @@ import enum
 from collections.abc import Callable
 from typing import Protocol
 
+import numpy as np
+
 from .codec import mavlink
 from .kinematics import Body, NavLimits
-from .manoeuvres import Climb, FlyTo, Hold, Land, Manoeuvre, Sequence, land_at, return_home
+from .manoeuvres import Climb, FlyTo, Hold, Land, Manoeuvre, Sequence, Stop, land_at, return_home
 from .mission_item import AMSL_FRAMES, GLOBAL_FRAMES, NAV_COMMANDS, MissionItem
 from .mission_store import MissionStore
 
+SETTLED_M_S = 0.05
+"""At rest enough to start a new item after a jump."""
 NAV_WAYPOINT = mavlink.MAV_CMD_NAV_WAYPOINT
 NAV_LOITER_UNLIM = mavlink.MAV_CMD_NAV_LOITER_UNLIM
 NAV_LOITER_TIME = mavlink.MAV_CMD_NAV_LOITER_TIME
@@ -98,6 +102,7 @@ class MissionRunner:
         self._paused = False
         self._complete = False
         self._manoeuvre: Manoeuvre | None = None
+        self._settling = False
 
     @property
     def state(self) -> MissionState:
@@ -169,19 +174,36 @@ class MissionRunner:
         )
 
     def pause(self, now: float) -> None:
+        """Slow to a stop along the track and hover (ArduCopter: AC_WPNav's pause)."""
         self._paused = True
-        self._manoeuvre = Hold()
+        self._manoeuvre = Stop()
         self._manoeuvre.start(self._body, now)
 
     def resume(self, now: float) -> None:
-        """Go on from a pause (nothing to do if not paused)."""
+        """Go on from a pause (nothing to do if not paused): the same leg, its speed picked
+        up at the stopping jerk (ArduCopter ramps the paused track's speed back up)."""
         if self._paused:
             self._paused = False
+            self._body.pick_up()
             self._begin_item(now)
+
+    def jump(self, now: float) -> None:
+        """The current item was changed in flight (MISSION_SET_CURRENT): ArduCopter gives
+        up the leg it flies (its target jumps to its stopping point) and starts the new
+        item from rest there (AC_WPNav::set_wp_destination after wp_and_spline_init)."""
+        if self._running and not self._paused and self._body.alt > 0:
+            self._manoeuvre = Stop()
+            self._manoeuvre.start(self._body, now)
+            self._settling = True
 
     def update(self, now: float) -> None:
         if not self._running or self._complete:
             return
+        if self._settling:  # after a jump: the new item begins once at rest
+            if np.hypot(*self._body.velocity[:2]) > SETTLED_M_S:
+                return
+            self._settling = False
+            self._manoeuvre = None
         if self._manoeuvre is None:
             self._begin_item(now)
             return

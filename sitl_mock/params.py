@@ -51,6 +51,7 @@ ARDUCOPTER_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("WP_SPD_DN", 1.5, REAL32),
     ("WP_ACC_Z", 1.0, REAL32),
     ("WP_JERK", 1.0, REAL32),
+    ("PSC_JERK_NE", 5.0, REAL32),
     ("LAND_SPD_MS", 0.5, REAL32),
     ("RTL_ALT_M", 15.0, REAL32),
     ("FENCE_ENABLE", 0, INT8),
@@ -83,11 +84,20 @@ PX4_DEFAULTS: tuple[tuple[str, float, int], ...] = (
 """PX4 names, SI units and defaults."""
 
 
-ARDUCOPTER_EFFECTIVE_JERK = 0.5
-"""ArduCopter's S-curves limit snap as well (the jerk itself ramps up), so its speed
-changes take longer than WP_JERK alone would give; the mock's jerk-only S-curves use
-half of WP_JERK, which matches ArduCopter SITL (4.8.0-dev): a 20 m leg from rest to rest
-at 1 m/s took 22.9 s there, 22.8 s here (22.0 s with the whole WP_JERK)."""
+ARDUCOPTER_EFFECTIVE_JERK = 1.0
+"""ArduCopter's S-curves limit snap as well (the jerk itself ramps up over 0.3 s), which
+the mock's jerk-only S-curves leave out. At cruise speeds that costs little: on ArduCopter
+SITL (4.8.0-dev) a straight leg from rest to rest took its length over the speed plus
+4.6 s at 5 m/s and 6.8 s at 10 m/s, and the whole WP_JERK gives 4.5 s and 6.5 s (half of
+it, the earlier choice, gave 6.3 s and 9 s: stops twice too long). At 1 m/s the snap
+matters more: 22.9 s there for 20 m, 22.0 s here (bench/results/kinematics_vs_sitl.txt)."""
+
+
+ARDUCOPTER_BRAKE_DECEL = 0.3
+"""ArduCopter's BRAKE mode asks a deceleration of 0.67 x the speed (its square-root
+shaper's linear part, below BRAKE_MODE_DECEL_RATE_MSS), ramped at PSC_JERK_NE: the speed
+decays with a 1.5 s time constant. As the mock's jerk-limited stop, 0.3 x the speed per
+second reaches as far: 9.1 m from 5 m/s and 19.7 m from 10 m/s (SITL: 8.7 m and 20.1 m)."""
 
 
 def arducopter_limits(params: ParameterSet) -> NavLimits:
@@ -100,6 +110,8 @@ def arducopter_limits(params: ParameterSet) -> NavLimits:
         land_speed=params.get("LAND_SPD_MS"),
         accept_radius=params.get("WP_RADIUS_M"),
         jerk=params.get("WP_JERK") * ARDUCOPTER_EFFECTIVE_JERK,
+        stop_jerk=params.get("PSC_JERK_NE"),
+        brake_accel=ARDUCOPTER_BRAKE_DECEL,
     )
 
 
@@ -113,6 +125,8 @@ def px4_limits(params: ParameterSet) -> NavLimits:
         land_speed=params.get("MPC_LAND_SPEED"),
         accept_radius=params.get("NAV_ACC_RAD"),
         jerk=params.get("MPC_JERK_AUTO"),
+        stop_jerk=params.get("MPC_JERK_AUTO"),
+        brake_accel=params.get("MPC_ACC_HOR"),
     )
 
 

@@ -73,20 +73,26 @@ class Profile:
 
 
 def leg_profile(
-    distance: float, entry_speed: float, max_speed: float, accel: float, jerk: float
+    distance: float,
+    entry_speed: float,
+    max_speed: float,
+    accel: float,
+    jerk: float,
+    up_jerk: float | None = None,
 ) -> Profile:
     """The quickest profile from `entry_speed` to rest at `distance` no faster than
-    `max_speed` (or than the entry speed, when already faster). Where even a straight
-    slow-down needs more room than `distance`, the profile is that slow-down: the vehicle
-    overshoots and has to come back."""
+    `max_speed` (or than the entry speed, when already faster), the speed changing first
+    at `up_jerk` (default `jerk`). Where even a straight slow-down needs more room than
+    `distance`, the profile is that slow-down: the vehicle overshoots and comes back."""
     v0 = max(entry_speed, 0.0)
+    first = jerk if up_jerk is None else up_jerk
     stop = stopping_distance(v0, accel, jerk)
     if distance <= stop:
         return _profile(v0, v0, 0.0, accel, jerk)
     peak = max(max_speed, 1e-6)
 
     def needed(v: float) -> float:
-        return change_distance(v0, v, accel, jerk) + stopping_distance(v, accel, jerk)
+        return change_distance(v0, v, accel, first) + stopping_distance(v, accel, jerk)
 
     if needed(peak) > distance:
         if v0 > peak:  # no room to slow to the new speed first: hold the speed, then stop
@@ -99,18 +105,21 @@ def leg_profile(
             low, high = (mid, high) if needed(mid) <= distance else (low, mid)
         peak = low
     cruise_s = (distance - needed(peak)) / peak
-    return _profile(v0, peak, max(cruise_s, 0.0), accel, jerk)
+    return _profile(v0, peak, max(cruise_s, 0.0), accel, jerk, first)
 
 
-def _profile(v0: float, peak: float, cruise_s: float, accel: float, jerk: float) -> Profile:
+def _profile(
+    v0: float, peak: float, cruise_s: float, accel: float, jerk: float, up_jerk: float | None = None
+) -> Profile:
     durations, jerks = np.zeros(PHASES), np.zeros(PHASES)
-    for first, v_from, v_to in ((0, v0, peak), (DECEL_PHASE, peak, 0.0)):
+    changes = ((0, v0, peak, up_jerk or jerk), (DECEL_PHASE, peak, 0.0, jerk))
+    for first, v_from, v_to, j in changes:
         dv = v_to - v_from
-        ramp = min(math.sqrt(abs(dv) / jerk), accel / jerk)
-        plateau = max(abs(dv) / accel - accel / jerk, 0.0) if ramp == accel / jerk else 0.0
+        ramp = min(math.sqrt(abs(dv) / j), accel / j)
+        plateau = max(abs(dv) / accel - accel / j, 0.0) if ramp == accel / j else 0.0
         sign = math.copysign(1.0, dv)
         durations[first : first + 3] = (ramp, plateau, ramp)
-        jerks[first : first + 3] = (sign * jerk, 0.0, -sign * jerk)
+        jerks[first : first + 3] = (sign * j, 0.0, -sign * j)
     durations[3] = cruise_s
     knots = np.concatenate(([0.0], np.cumsum(durations)))
     states = np.zeros((PHASES + 1, 3))

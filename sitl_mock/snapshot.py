@@ -53,6 +53,8 @@ class VehicleState:
     """SYS_STATUS present, enabled, health."""
     rejected_packets: int = 0
     """Incoming packets dropped for a missing or wrong MAVLink 2 signature."""
+    holding: bool = False
+    """Told to stop where it is (paused, BRAKE): what a test checks a hold by."""
 
     @property
     def ground_speed(self) -> float:

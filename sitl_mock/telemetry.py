@@ -111,12 +111,15 @@ class TelemetrySchedule:
                 self.set_interval(msg_id, 1.0 / rate_hz if on else None, now)
 
     def due(self, now: float) -> list[int]:
+        """What to send now. After its first, a stream falls on multiples of its interval
+        (of simulated time), so a fleet's vehicles send the same streams on the same steps
+        (and the simulator converts their positions once for all of them)."""
         now += TIME_EPSILON_S
         if now < self._next_any:
             return []
         sending = [msg_id for msg_id, at in self._next.items() if at <= now]
         for msg_id in sending:
-            following = self._next[msg_id] + self._intervals[msg_id]
-            self._next[msg_id] = following if following > now else now + self._intervals[msg_id]
+            interval = self._intervals[msg_id]
+            self._next[msg_id] = (math.floor(now / interval) + 1) * interval
         self._next_any = min(self._next.values(), default=math.inf)
         return sending

@@ -100,13 +100,13 @@ class Vehicle:
             self.flight,
             self.store,
             self.schedule,
-            self.current_changed,
+            self._jumped,
             lambda: self.faults,
             self.say,
         )
         self.boot = BootSequence(self.flight, self.store, self.say, self._send_home)
         self.store.on_mission_changed = self._mission_changed
-        self.store.on_current_changed = self.current_changed
+        self.store.on_current_changed = self._jumped
         self._gcs_heard = False
         self._was_armed = False
         self._held_texts: list[Message] | None = None
@@ -187,6 +187,11 @@ class Vehicle:
 
     def current_changed(self) -> None:
         self.send(messages.mission_current(self.state(), self.flavour))
+
+    def _jumped(self) -> None:
+        """MISSION_SET_CURRENT: say so, and fly the new item now."""
+        self.flight.runner.jump(self._now())
+        self.current_changed()
 
     def speed_changed(self, speed: float) -> None:
         self.flight.change_speed(speed)
@@ -271,6 +276,7 @@ class Vehicle:
             home_set=flight.home_set(now),
             sensors=self.boot.sensors(now),
             rejected_packets=self.rejected_packets,
+            holding=flight.holding,
         )
 
     def _system_status(self, now: float) -> int:
