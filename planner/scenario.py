@@ -53,6 +53,10 @@ class Origin(_Strict):
     )
 
 
+MAX_RADIUS = 0.49
+"""The largest radius a clearance grows a UAV to (cells): below half a cell."""
+
+
 class UAVSpec(_Strict):
     id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$")
     start: Cell
@@ -87,6 +91,17 @@ class Scenario(_Strict):
         if problems:
             raise ValueError("; ".join(problems))
         return self
+
+    def with_clearance(self, metres: float) -> Scenario:
+        """The scenario with every UAV's radius grown by half of `metres`: a plan of it
+        keeps every pair `metres` further apart than 2R (and each UAV further from the
+        obstacles), room for real vehicles straying off their paths. A radius stays below
+        half a cell (a UAV must fit in its cell): the clearance shrinks where it cannot."""
+        grow = metres / 2 / self.grid.cell_size_m
+        uavs = [
+            u.model_copy(update={"radius": min(u.radius + grow, MAX_RADIUS)}) for u in self.uavs
+        ]
+        return self.model_copy(update={"uavs": uavs})
 
     def blocked(self) -> NDArray[np.bool_]:
         """Obstacle map indexed [x, y]."""

@@ -1,10 +1,12 @@
 """`mvo-gcs fly`: plan a scenario, upload the missions, fly them together and follow.
 
 UAV k of the scenario flies on the k-th connection of `--vehicles`. The plan is flown
-slower than planned when its legs are faster than `--max-speed` (every time stretched
-by one factor: see `flight_pace`). At the end the separation actually flown, from the
-vehicles' reported positions, is printed against the plan's 2R. Scenario and plan
-errors exit 2, a vehicle failure or a flown separation under 2R exits 1.
+with its fastest UAV at `--max-speed` (5 m/s by default), keeping its passing order
+(`gcs.mission.flight_plan`); a speed the ground station cannot keep safe is refused
+before anything is armed, naming the highest one it can. At the end the separation
+actually flown, from the vehicles' reported positions, is printed against the plan's
+2R. Scenario, plan and speed errors exit 2, a vehicle failure or a flown separation
+under 2R exits 1.
 """
 
 from __future__ import annotations
@@ -21,12 +23,19 @@ from gcs.cli.planning_options import (
 )
 from gcs.cli.progress_display import ProgressDisplay
 from gcs.fleet.fleet import Fallback, Fleet, FleetSettings, FlightReport
+from gcs.fleet.vehicle_limits import read_limits
 from gcs.mavlink import client
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import VehicleLink
-from gcs.mavlink.mission_item import Mission
 from gcs.mission.build import DEFAULT_ALTITUDE_M
-from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, TURN_RADIUS_M, paced_flight
+from gcs.mission.flight_plan import (
+    DEFAULT_CLEARANCE_M,
+    TURN_RADIUS_M,
+    FlightPlan,
+    UnsafeSpeed,
+    flight_plan,
+)
+from gcs.mission.motion import DEFAULT_SPEED_M_S
 from planner.plan import Plan
 from planner.scenario import Scenario
 
@@ -48,8 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--max-speed",
         type=float,
-        default=DEFAULT_MAX_SPEED_M_S,
-        help="fly the plan no faster than this, m/s (default: %(default)s)",
+        default=DEFAULT_SPEED_M_S,
+        help="the cruise speed of the plan's fastest UAV, m/s (default: %(default)s); "
+        "refused, naming the highest safe one, if the flight cannot be kept safe at it",
     )
     parser.add_argument(
         "--turn-radius",
@@ -64,6 +74,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=[f.value for f in Fallback],
         default="land",
         help="what the other vehicles do if one fails (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--clearance",
+        type=float,
+        default=DEFAULT_CLEARANCE_M,
+        help="metres beyond 2R the plan keeps between UAVs, room to stray in flight "
+        "(default: %(default)s)",
     )
     parser.add_argument("--connect-timeout", type=float, default=15.0)
 
@@ -91,14 +108,18 @@ def _plan(scenario: Scenario, args: argparse.Namespace) -> Plan:
     from planner.pipeline import plan
 
     print(f"planning {scenario.name} with {args.algorithm} ...", flush=True)
-    return plan(scenario, planner_settings(args))
+    return plan(scenario.with_clearance(args.clearance), planner_settings(args))
 
 
 async def _fly(scenario: Scenario, plan: Plan, urls: list[str], args: argparse.Namespace) -> int:
     links = await _connect(scenario, urls, args.connect_timeout)
     try:
-        missions = _missions(plan, scenario, links, args)
-        fleet = Fleet(links, missions, settings=FleetSettings(fallback=Fallback(args.on_failure)))
+        try:
+            flight = await _flight(plan, scenario, links, args)
+        except UnsafeSpeed as exc:
+            print(f"mvo-gcs fly: {exc}; nothing was armed", file=sys.stderr)
+            return 2
+        fleet = Fleet(links, flight, settings=FleetSettings(fallback=Fallback(args.on_failure)))
         display = ProgressDisplay()
         watcher = asyncio.create_task(_show(fleet, display))
         report = await fleet.fly()
@@ -127,10 +148,12 @@ async def _connect(scenario: Scenario, urls: list[str], timeout: float) -> dict[
     return links
 
 
-def _missions(
+async def _flight(
     plan: Plan, scenario: Scenario, links: dict[str, VehicleLink], args: argparse.Namespace
-) -> dict[str, Mission]:
-    paced = paced_flight(
+) -> FlightPlan:
+    """The plan at `--max-speed` with each vehicle's own limits, timed and ordered."""
+    read = await asyncio.gather(*(read_limits(link) for link in links.values()))
+    flight = flight_plan(
         plan,
         scenario,
         {uav: link.autopilot for uav, link in links.items()},
@@ -138,10 +161,14 @@ def _missions(
         finish=args.finish,
         max_speed_m_s=args.max_speed,
         turn_radius_m=args.turn_radius,
+        limits=dict(zip(links, read, strict=True)),
     )
-    if paced.factor > 1:
-        print(f"flying {paced.factor:.1f}x slower than planned (max {args.max_speed} m/s)")
-    return paced.missions
+    print(
+        f"flying at up to {flight.speed_m_s:g} m/s, keeping the plan's passing order: "
+        f"{flight.duration_s:.0f} s to the last goal when nothing goes wrong",
+        flush=True,
+    )
+    return flight
 
 
 async def _show(fleet: Fleet, display: ProgressDisplay) -> None:

@@ -14,14 +14,14 @@ from gcs.fleet.events import (
     FleetEvent,
     FlightEnded,
     MissionsStarted,
-    Paused,
     Progress,
-    Resumed,
     StartCancelled,
     Uploaded,
     VehicleFailed,
     VehicleFinished,
     VehicleReady,
+    Waiting,
+    WaitOver,
 )
 from gcs.fleet.route_tracker import VehicleProgress
 
@@ -54,10 +54,11 @@ def event_line(event: FleetEvent) -> str | None:
             return f"start cancelled ({', '.join(failed)} failed); the others {fallback}"
         case MissionsStarted(uav_ids=uavs, spread_ms=spread):
             return f"{len(uavs)} missions started within {spread:.1f} ms"
-        case Paused(uav_ids=uavs, waiting_for=laggard, lag_s=lag):
-            return f"{', '.join(uavs)} wait for {laggard} ({lag:.1f} s behind)"
-        case Resumed(uav_ids=uavs):
-            return f"{', '.join(uavs)} continue"
+        case Waiting(uav_id=uav, waits_for=leader, how=how, gap_m=gap):
+            edging = " and edges closer" if how == "creep" else ""
+            return f"{uav} waits for {leader} to pass first ({gap:.0f} m short){edging}"
+        case WaitOver(uav_id=uav):
+            return f"{uav} flies on"
         case VehicleFinished(uav_id=uav, distance_to_goal_m=d):
             return f"{uav}: landed {d:.1f} m from its goal"
         case Aborted(mode=mode, reason=reason):

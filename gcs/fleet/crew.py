@@ -1,4 +1,4 @@
-"""What every part of a fleet flight shares: its members, their holds, its events.
+"""What every part of a fleet flight shares: its members, its order, its holds, its events.
 
 The fleet's roles (launch, follow, interventions, live replanning) are functions of this
 one record rather than methods of one large class; `Fleet` is the facade over them.
@@ -12,15 +12,16 @@ from enum import StrEnum
 from typing import TypeVar
 
 from gcs.fleet.events import EventBus, VehicleFailed
-from gcs.fleet.holds import Holds
+from gcs.fleet.gatekeeper import GateCommander, Gatekeeper
 from gcs.fleet.member import Member
 from gcs.fleet.outcome import VehicleOutcome, run_each
 from gcs.fleet.route_tracker import VehicleProgress
-from gcs.fleet.schedule_keeper import KeepingPolicy
 from gcs.fleet.separation import SeparationTracker, SeparationWatch
 from gcs.mavlink.actions import ReadinessPolicy
 from gcs.mavlink.commands import CommandPolicy
 from gcs.mavlink.mission_protocol import TransferPolicy
+from gcs.mission.flight_plan import FlightPlan
+from gcs.mission.motion import Gate, StoppingRule
 
 T = TypeVar("T")
 
@@ -36,22 +37,25 @@ class Fallback(StrEnum):
 @dataclass(frozen=True)
 class FleetSettings:
     fallback: Fallback = Fallback.HOLD
-    keep_schedule: bool = True
-    keeping: KeepingPolicy = field(default_factory=KeepingPolicy)
+    keep_order: bool = True  # keep the plan's passing order (off: each flies alone)
+    stopping: StoppingRule = field(default_factory=StoppingRule)
     transfer: TransferPolicy = field(default_factory=TransferPolicy)
     commands: CommandPolicy = field(default_factory=CommandPolicy)
     readiness: ReadinessPolicy = field(default_factory=ReadinessPolicy)
     start_tolerance_m: float = 3.0  # how far from its start a vehicle may be when it arms
-    tick_s: float = 0.02  # wall seconds between looks at the fleet
-    progress_every_s: float = 0.25  # wall seconds between Progress events
+    tick_s: float = 0.05  # seconds between looks at the fleet
+    progress_every_s: float = 0.25  # seconds between Progress events
 
 
 @dataclass
 class Crew:
     members: dict[str, Member]
     settings: FleetSettings
+    flight: FlightPlan
+    gatekeeper: Gatekeeper
+    commander: GateCommander
     bus: EventBus = field(default_factory=EventBus)
-    holds: Holds = field(default_factory=Holds)
+    held: set[str] = field(default_factory=set)  # by the operator: only the operator moves it
     failed: dict[str, str] = field(default_factory=dict)  # uav -> why it cannot go on
     withdrawn: dict[str, str] = field(default_factory=dict)  # uav -> "land" / "rtl"
     aborted: str | None = None  # why, once aborted
@@ -78,13 +82,15 @@ class Crew:
         return await run_each(self.chosen(uav_ids), action, failed)
 
     def progress(self) -> tuple[VehicleProgress, ...]:
-        stopped, held = self.holds.stopped, self.holds.operator
+        gates, waits = self.gatekeeper.gates, self.gatekeeper.waits_for
         return tuple(
             m.tracker.progress(
                 m.link.state,
-                paused=m.uav_id in stopped,
-                held=m.uav_id in held,
+                paused=m.uav_id in self.held or gates[m.uav_id] != Gate.GO,
+                held=m.uav_id in self.held,
                 withdrawn=m.uav_id in self.withdrawn,
+                waits_for=waits[m.uav_id],
+                along_m=m.along.s,
             )
             for m in self.members.values()
         )

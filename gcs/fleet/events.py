@@ -66,15 +66,21 @@ class ItemReached(FleetEvent):
 
 
 @dataclass(frozen=True)
-class Paused(FleetEvent):
-    uav_ids: tuple[str, ...]
-    waiting_for: str
-    lag_s: float  # how far `waiting_for` is behind the paused vehicles
+class Waiting(FleetEvent):
+    """A vehicle stops (or edges closer, "creep") to let another pass first, as the plan
+    has it: it may not go beyond `gap_m` metres ahead until `waits_for` has passed."""
+
+    uav_id: str
+    waits_for: str
+    how: str  # "stop" or "creep"
+    gap_m: float
 
 
 @dataclass(frozen=True)
-class Resumed(FleetEvent):
-    uav_ids: tuple[str, ...]
+class WaitOver(FleetEvent):
+    """The vehicle it waited for is out of its way: it flies on."""
+
+    uav_id: str
 
 
 @dataclass(frozen=True)

@@ -1,25 +1,29 @@
 """A fleet flight: upload every mission, line the vehicles up, start them together, follow.
 
 The plan's common t = 0 is the moment every vehicle, hovering at its altitude over its
-start, leaves its take-off item (`launch`). During the flight (`follower`) each
-vehicle's lag against its schedule is watched and vehicles ahead wait for a laggard
-(`schedule_keeper`); the operator can hold, continue, withdraw one vehicle or abort the
-whole fleet at any moment (`interventions`), and an operator's hold is never lifted by
-the schedule keeper (`holds`). Every per-vehicle answer is a `VehicleOutcome`; everything
-that happens is also an event. `close()` releases what the flight registered on its
-links, so a finished flight leaves nothing behind.
+start, leaves its take-off item (`launch`). During the flight (`follower`) the plan's
+passing order is kept: a vehicle that would come too close to another before that one
+has passed is stopped in time and let go when it has (`gatekeeper`); the operator can
+hold, continue, withdraw one vehicle or abort the whole fleet at any moment
+(`interventions`), and an operator's hold is lifted by nobody else. Every per-vehicle
+answer is a `VehicleOutcome`; everything that happens is also an event. `close()`
+releases what the flight registered on its links, so a finished flight leaves nothing
+behind.
 """
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import AsyncIterator
 
 from gcs.fleet import interventions, launch
 from gcs.fleet.crew import Crew, Fallback, FleetSettings
-from gcs.fleet.events import FleetEvent, Uploaded
+from gcs.fleet.events import EventBus, FleetEvent, Uploaded, VehicleFailed
 from gcs.fleet.follower import FlightReport, Follower
+from gcs.fleet.gatekeeper import GateCommander, Gatekeeper
 from gcs.fleet.member import Member
 from gcs.fleet.outcome import VehicleOutcome
+from gcs.fleet.path_progress import PathProgress
 from gcs.fleet.route_tracker import RouteTracker, VehicleProgress
 from gcs.fleet.separation import SeparationTracker, SeparationWatch
 from gcs.mavlink import ardupilot
@@ -28,7 +32,9 @@ from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Mission
 from gcs.mavlink.mission_protocol import MissionClient, UploadResult
 from gcs.mavlink.parameters import set_in_units
-from gcs.mission.build import Visit, fly_ideally, takeoff_index
+from gcs.mission.build import takeoff_index
+from gcs.mission.flight_plan import FlightPlan, continued
+from planner.trajectory import Trajectory
 
 __all__ = ["Fallback", "Fleet", "FleetSettings", "FlightReport", "VehicleOutcome"]
 
@@ -39,18 +45,23 @@ class Fleet:
     def __init__(
         self,
         links: dict[str, VehicleLink],
-        missions: dict[str, Mission],
-        schedules: dict[str, list[Visit]] | None = None,
+        flight: FlightPlan,
         settings: FleetSettings | None = None,
     ) -> None:
+        missions = flight.missions
         if set(links) != set(missions):
             raise ValueError(f"links {sorted(links)} and missions {sorted(missions)} differ")
         settings = settings or FleetSettings()
-        schedules = schedules or {uav: fly_ideally(m) for uav, m in missions.items()}
-        members = {
-            uav: _member(uav, links[uav], missions[uav], schedules[uav], settings) for uav in links
-        }
-        self.crew = Crew(members, settings)
+        members = {uav: _member(uav, links[uav], flight, settings) for uav in links}
+        gatekeeper = Gatekeeper(flight.order, flight.limits, settings.stopping)
+        bus = EventBus()
+        commander = GateCommander(
+            {uav: m.actions for uav, m in members.items()},
+            settings.stopping,
+            lambda uav: flight.cruise_at(uav, members[uav].along.s),
+            lambda uav, why: bus.publish(VehicleFailed(uav, "flight", why)),
+        )
+        self.crew = Crew(members, settings, flight, gatekeeper, commander, bus)
         first = next(iter(members.values())).tracker.origin
         self.crew.separation = SeparationTracker(*first)
         self.crew.watch = SeparationWatch(self.crew.separation)
@@ -136,25 +147,51 @@ class Fleet:
         return await interventions.abort(self.crew, mode, reason)
 
     def held_by_operator(self) -> set[str]:
-        return set(self.crew.holds.operator)
+        return set(self.crew.held)
 
     # --- live replanning -------------------------------------------------------------------
 
-    async def replace_missions(
-        self, missions: dict[str, Mission], *, starts_at: float
+    async def replan(
+        self, missions: dict[str, Mission], changed: dict[str, Trajectory], *, starts_at: float
     ) -> dict[str, VehicleOutcome[None]]:
-        """Give flying vehicles new missions that begin at plan time `starts_at` where each
-        vehicle is now (a live replan). Each is uploaded, verified and made current from
-        its take-off item, which an airborne vehicle completes at once; the others fly on."""
+        """Give flying vehicles new missions flying `changed` trajectories (cells, the
+        flight's clock) from where each is now (a live replan). Each is uploaded and
+        verified; then the fleet follows the rest of the flight: every vehicle from where
+        it is, the new passing order among them, and the new missions made current from
+        their take-off item (which an airborne vehicle completes at once)."""
 
-        async def replace_one(member: Member) -> None:
-            mission = missions[member.uav_id]
-            await member.client.upload(mission)
-            visits = [v.shifted(starts_at) for v in fly_ideally(mission)]
-            member.follow_mission(mission, visits)
+        async def upload_one(member: Member) -> None:
+            await member.client.upload(missions[member.uav_id])
+
+        outcomes = await self.crew.each(upload_one, "replan", missions)
+        taken = {uav for uav, outcome in outcomes.items() if outcome.ok}
+        crew = self.crew
+        along = {uav: m.along.s for uav, m in crew.members.items()}
+        flight = await asyncio.to_thread(
+            continued,
+            crew.flight,
+            along,
+            {uav: changed[uav] for uav in taken},
+            {uav: missions[uav] for uav in taken},
+        )
+        self._follow(flight, taken, starts_at)
+
+        async def start_one(member: Member) -> None:
             await member.client.set_current(member.takeoff_seq)
 
-        return await self.crew.each(replace_one, "replan", missions)
+        started = await crew.each(start_one, "replan", taken)
+        return {**outcomes, **{uav: o for uav, o in started.items() if not o.ok}}
+
+    def _follow(self, flight: FlightPlan, changed: set[str], starts_at: float) -> None:
+        """From now on: `flight`'s paths and order; new missions for `changed`."""
+        crew = self.crew
+        crew.flight = flight
+        crew.gatekeeper.replan(flight.order, flight.limits)
+        for uav, member in crew.members.items():
+            member.along.restart(flight.paths[uav])
+            if uav in changed:
+                visits = [v.shifted(starts_at) for v in flight.visits(uav)]
+                member.follow_mission(flight.missions[uav], visits)
 
     # --- the end ------------------------------------------------------------------------
 
@@ -173,9 +210,8 @@ async def _upload(member: Member) -> UploadResult:
     return result
 
 
-def _member(
-    uav: str, link: VehicleLink, mission: Mission, visits: list[Visit], settings: FleetSettings
-) -> Member:
+def _member(uav: str, link: VehicleLink, flight: FlightPlan, settings: FleetSettings) -> Member:
+    mission = flight.missions[uav]
     takeoff = mission.items[takeoff_index(mission.items)]
     return Member(
         uav,
@@ -183,5 +219,6 @@ def _member(
         mission,
         FlightActions(link, settings.commands, settings.readiness),
         MissionClient(link, settings.transfer),
-        RouteTracker(uav, visits, (takeoff.lat, takeoff.lon)),
+        RouteTracker(uav, flight.visits(uav), (takeoff.lat, takeoff.lon)),
+        PathProgress(flight.paths[uav], flight.frame),
     )

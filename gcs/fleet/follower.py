@@ -1,9 +1,10 @@
-"""Following a flight to its end: items reached, landings, link losses, schedule keeping.
+"""Following a flight to its end: items reached, landings, link losses, the passing order.
 
 The flight ends when every vehicle has flown its mission and is disarmed on the ground
 (or, if the operator sent it home or down, is on the ground), when it is aborted, or at
 its time bound. A vehicle whose link drops is waited for: an autopilot flies its
-mission without us, and a short outage must not end a flight while vehicles are up.
+mission without us, and a short outage must not end a flight while vehicles are up
+(those that wait for it keep waiting where it was last seen).
 """
 
 from __future__ import annotations
@@ -11,22 +12,21 @@ from __future__ import annotations
 import asyncio
 from dataclasses import dataclass
 
-from gcs.fleet.conflict_guard import ConflictGuard
 from gcs.fleet.crew import Crew
 from gcs.fleet.events import (
     FlightEnded,
     ItemReached,
-    Paused,
     Progress,
-    Resumed,
     VehicleFailed,
     VehicleFinished,
     VehicleLinkRegained,
+    Waiting,
+    WaitOver,
 )
 from gcs.fleet.interventions import abort
 from gcs.fleet.member import Member
-from gcs.fleet.schedule_keeper import coming_down, decide, in_the_plan
 from gcs.mission.geodesy import distance_m
+from gcs.mission.motion import Gate
 
 
 @dataclass(frozen=True)
@@ -45,7 +45,6 @@ class Follower:
         self.crew = crew
         self.finished: set[str] = set()
         self._link_down: set[str] = set()
-        self._guard = ConflictGuard(crew.settings.keeping.guard)
 
     async def follow(self, timeout_s: float | None = None) -> FlightReport:
         """Watch the flight to its end; `timeout_s` is in the vehicles' seconds (default:
@@ -59,8 +58,8 @@ class Follower:
         while crew.aborted is None and not self._all_down():
             self._note_items_and_ends()
             self._note_links()
-            if crew.settings.keep_schedule:
-                await self._keep_schedule()
+            if crew.settings.keep_order:
+                self._keep_order()
             if loop.time() >= next_progress:
                 crew.bus.publish(Progress(crew.progress(), self.min_separation_m))
                 next_progress = loop.time() + crew.settings.progress_every_s
@@ -128,21 +127,37 @@ class Follower:
                 self.crew.failed.pop(m.uav_id, None)
                 self.crew.bus.publish(VehicleLinkRegained(m.uav_id))
 
-    async def _keep_schedule(self) -> None:
+    def _keep_order(self) -> None:
+        """Stop, release or edge up the vehicles the passing order says (`gatekeeper`)."""
         crew = self.crew
-        progress = list(crew.progress())
-        trackers = {uav: m.tracker for uav, m in crew.members.items()}
-        outlook = self._guard.gives_way(in_the_plan(progress), coming_down(progress), trackers)
-        decision = decide(progress, crew.holds, crew.settings.keeping, outlook)
-        if decision.pause:
-            stop = crew.holds.keeper_pauses(decision.pause)
-            lag = decision.laggard_lag_s
-            crew.bus.publish(Paused(tuple(sorted(decision.pause)), decision.laggard or "", lag))
-            await crew.each(lambda m: m.actions.pause_mission(), "flight", stop)
-        if decision.resume:
-            go = crew.holds.keeper_resumes(decision.resume)
-            crew.bus.publish(Resumed(tuple(sorted(decision.resume))))
-            await crew.each(lambda m: m.actions.resume_mission(), "flight", go)
+        for uav, m in crew.members.items():
+            if m.along.update(m.link.state):
+                m.actions.mission_speed_m_s = crew.flight.cruise_at(uav, m.along.s)
+        gated = [uav for uav, m in crew.members.items() if self._gated(uav, m)]
+        along = {uav: m.along for uav, m in crew.members.items()}
+        for change in crew.gatekeeper.decide(along, gated):
+            crew.commander.want(change.uav_id, change.gate)
+            if change.gate == Gate.GO:
+                crew.bus.publish(WaitOver(change.uav_id))
+            else:
+                crew.bus.publish(
+                    Waiting(change.uav_id, change.waits_for or "", change.gate.value, change.gap_m)
+                )
+
+    def _gated(self, uav: str, member: Member) -> bool:
+        """Whether the passing order commands this vehicle now: flying its plan, heard,
+        not held by the operator (whose hold nobody else lifts), and not coming down at
+        its goal (ArduCopter will not pause a landing), unless it was stopped short of it
+        (it must be let go when its way is clear)."""
+        crew = self.crew
+        state = member.link.state
+        if uav in self.finished or uav in crew.withdrawn or not crew.started:
+            if uav in self.finished or (uav in crew.withdrawn and state.down):
+                crew.gatekeeper.out_of_the_way(uav)
+            return False
+        stopped = crew.gatekeeper.gates[uav] != Gate.GO
+        landing = member.tracker.landing(state) and not stopped
+        return state.link_up and uav not in crew.held and not landing
 
 
 def default_timeout(crew: Crew) -> float:

@@ -12,27 +12,41 @@ from gcs.fleet.crew import Crew, Fallback
 from gcs.fleet.events import Aborted, OperatorContinued, OperatorHeld, Withdrawn
 from gcs.fleet.member import Member
 from gcs.fleet.outcome import VehicleOutcome
+from gcs.mission.motion import Gate
 
 
 async def hold(crew: Crew, uav_ids: Iterable[str] | None = None) -> dict[str, VehicleOutcome[str]]:
     """The operator's hold: the vehicles stop where they are until the operator continues
-    them (the schedule keeper never does)."""
+    them (nothing else does: the passing order leaves a held vehicle alone)."""
     chosen = set(crew.members if uav_ids is None else uav_ids)
-    crew.holds.hold(chosen)
+    crew.held |= chosen
     crew.bus.publish(OperatorHeld(tuple(sorted(chosen))))
-    return await crew.each(lambda m: m.actions.hold(crew.started), "hold", chosen)
+    outcomes = await crew.each(lambda m: m.actions.hold(crew.started), "hold", chosen)
+    for uav in chosen:
+        crew.commander.settle(uav, Gate.STOP)
+        crew.gatekeeper.gates[uav] = Gate.STOP
+    return outcomes
 
 
 async def continue_(
     crew: Crew, uav_ids: Iterable[str] | None = None
 ) -> dict[str, VehicleOutcome[None]]:
-    """Lift the operator's hold; a vehicle the schedule keeper is holding waits for it."""
+    """Lift the operator's hold: a vehicle flies on unless the passing order has it wait
+    for another (then it goes on as soon as that one has passed)."""
     chosen = set(crew.members if uav_ids is None else uav_ids) - set(crew.withdrawn)
-    moving = crew.holds.release(chosen)
+    crew.held -= chosen
     crew.bus.publish(OperatorContinued(tuple(sorted(chosen))))
+    along = {uav: m.along for uav, m in crew.members.items()}
+    crew.gatekeeper.decide(along, chosen)
+    gates, waits = crew.gatekeeper.gates, crew.gatekeeper.waits_for
+    moving = {uav for uav in chosen if gates[uav] == Gate.GO}
     outcomes = await crew.each(lambda m: m.actions.proceed(), "continue", moving)
+    for uav in moving:
+        crew.commander.settle(uav, Gate.GO)
+    for uav in chosen - moving:  # stopped for now; the order lets it go when it may
+        crew.gatekeeper.gates[uav] = Gate.STOP
     waiting: dict[str, VehicleOutcome[None]] = {
-        uav: VehicleOutcome(uav, True, "still paused by the schedule keeper")
+        uav: VehicleOutcome(uav, True, f"waits for {waits[uav]} to pass first")
         for uav in chosen - moving
     }
     return {**outcomes, **waiting}
@@ -42,8 +56,7 @@ async def withdraw(crew: Crew, uav_id: str, mode: str) -> VehicleOutcome[None]:
     """One vehicle lands or returns home on the operator's word and leaves the plan."""
     fallback = Fallback(mode)
     crew.withdrawn[uav_id] = fallback.value
-    crew.holds.operator.discard(uav_id)
-    crew.holds.keeper.discard(uav_id)
+    crew.held.discard(uav_id)
     crew.bus.publish(Withdrawn(uav_id, fallback.value))
     outcomes = await fall_back(crew, [uav_id], fallback)
     return outcomes[uav_id]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from gcs.fleet.path_progress import PathProgress
 from gcs.fleet.route_tracker import RouteTracker
 from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.link import VehicleLink
@@ -19,7 +20,8 @@ class Member:
     mission: Mission
     actions: FlightActions
     client: MissionClient
-    tracker: RouteTracker
+    tracker: RouteTracker  # the mission's items: reached, and when the timed flight does
+    along: PathProgress  # metres along the path: what the passing order speaks of
 
     @property
     def takeoff_seq(self) -> int:

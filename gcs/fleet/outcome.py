@@ -24,6 +24,7 @@ class VehicleOutcome(Generic[T]):
     detail: str
     value: T | None = None
     error: BaseException | None = None
+    seconds: float | None = None  # from the operation's start to this vehicle's answer
 
 
 async def run_each(
@@ -36,18 +37,27 @@ async def run_each(
     Failures a vehicle can cause become a failed outcome (and `on_failure(uav, message)`);
     anything else (a bug, a cancellation) propagates."""
     chosen = list(members)
-    results = await asyncio.gather(*(action(m) for m in chosen), return_exceptions=True)
+    loop = asyncio.get_running_loop()
+    began = loop.time()
+    answered: dict[str, float] = {}
+
+    async def timed(member: Member) -> T:
+        try:
+            return await action(member)
+        finally:
+            answered[member.uav_id] = loop.time() - began
+
+    results = await asyncio.gather(*(timed(m) for m in chosen), return_exceptions=True)
     outcomes: dict[str, VehicleOutcome[T]] = {}
     for member, result in zip(chosen, results, strict=True):
+        uav, seconds = member.uav_id, answered.get(member.uav_id)
         if isinstance(result, EXPECTED_FAILURES):
             if on_failure is not None:
-                on_failure(member.uav_id, str(result))
-            outcomes[member.uav_id] = VehicleOutcome(
-                member.uav_id, False, str(result), None, result
-            )
+                on_failure(uav, str(result))
+            outcomes[uav] = VehicleOutcome(uav, False, str(result), None, result, seconds)
         elif isinstance(result, BaseException):
             raise result
         else:
             detail = result if isinstance(result, str) else "ok"  # a hold says how
-            outcomes[member.uav_id] = VehicleOutcome(member.uav_id, True, detail, result)
+            outcomes[uav] = VehicleOutcome(uav, True, detail, result, None, seconds)
     return outcomes

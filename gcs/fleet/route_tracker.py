@@ -48,8 +48,10 @@ class VehicleProgress:
     clock_s: float  # the plan's clock for this vehicle
     plan_time_s: float  # where the vehicle is on its plan
     lag_s: float  # clock_s - plan_time_s: seconds behind schedule
-    paused: bool  # stopped, by the operator or by the schedule keeper
+    paused: bool  # stopped, by the operator or to let another vehicle pass
     held: bool  # held by the operator: only the operator's continue moves it
+    waits_for: str | None  # the vehicle it waits for (stopped, or edging closer)
+    along_m: float  # metres along its path
     withdrawn: bool  # sent home or down by the operator: out of the plan
     holding: bool  # waiting at a waypoint as the plan says
     landing: bool  # over its last place, coming down: out of the plan's picture
@@ -171,7 +173,14 @@ class RouteTracker:
         return leave + fraction * (target.arrive - leave)
 
     def progress(
-        self, state: VehicleState, *, paused: bool, held: bool = False, withdrawn: bool = False
+        self,
+        state: VehicleState,
+        *,
+        paused: bool,
+        held: bool = False,
+        withdrawn: bool = False,
+        waits_for: str | None = None,
+        along_m: float = 0.0,
     ) -> VehicleProgress:
         done = len(self._passed_at)
         nxt = self.visits[done] if done < len(self.visits) else None
@@ -200,6 +209,8 @@ class RouteTracker:
             lag_s=clock - plan_time if self.start_boot_ms is not None else 0.0,
             paused=paused,
             held=held,
+            waits_for=waits_for,
+            along_m=along_m,
             withdrawn=withdrawn,
             holding=self.holding(state),
             landing=self.landing(state),

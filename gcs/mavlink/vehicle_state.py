@@ -46,6 +46,7 @@ class Position:
     lon: float
     relative_alt_m: float
     alt_amsl_m: float
+    time_boot_ms: int = 0  # the vehicle's own clock when it was there
 
 
 @dataclass
@@ -124,7 +125,9 @@ def _global_position(s: VehicleState, m: Any, now: float) -> None:
     s.position_heard = now
     if m.lat == 0 and m.lon == 0:
         return  # no position origin yet (ArduPilot before its EKF has one)
-    s.position = Position(m.lat / 1e7, m.lon / 1e7, m.relative_alt / 1000.0, m.alt / 1000.0)
+    s.position = Position(
+        m.lat / 1e7, m.lon / 1e7, m.relative_alt / 1000.0, m.alt / 1000.0, m.time_boot_ms
+    )
     s.velocity_n_e_m_s = (m.vx / 100.0, m.vy / 100.0)
     s.groundspeed_m_s = (m.vx**2 + m.vy**2) ** 0.5 / 100.0
     if m.hdg != 65535:

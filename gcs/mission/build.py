@@ -143,11 +143,14 @@ def build_missions(
     finish: Finish = "land",
     acceptance_radius_m: float | None = None,
     allow_infeasible: bool = False,
+    holds: bool = True,
 ) -> dict[str, Mission]:
     """One mission per UAV of the plan, keyed by UAV id.
 
     `altitude_m` is metres above home, one for all or one per UAV id. An infeasible plan
-    is refused unless `allow_infeasible` (e.g. to export it for inspection).
+    is refused unless `allow_infeasible` (e.g. to export it for inspection). Without
+    `holds`, the plan's waits are left out (the ground station's passing order makes the
+    vehicle wait where, and as long as, another is in its way).
     """
     if not plan.feasible and not allow_infeasible:
         raise ValueError(f"plan of {plan.scenario!r} is infeasible: it is not safe to fly")
@@ -165,6 +168,7 @@ def build_missions(
             altitude_m=altitude_m if isinstance(altitude_m, int | float) else altitude_m[u.id],
             finish=finish,
             acceptance_radius_m=acceptance_radius_m,
+            holds=holds,
         )
         for u in plan.uavs
     }
@@ -179,6 +183,7 @@ def build_mission(
     altitude_m: float = DEFAULT_ALTITUDE_M,
     finish: Finish = "land",
     acceptance_radius_m: float | None = None,
+    holds: bool = True,
 ) -> Mission:
     """The mission flying one plan trajectory; `speed` is the UAV's cruise speed in cells/s.
 
@@ -191,7 +196,9 @@ def build_mission(
     if acceptance_radius_m is not None and acceptance_radius_m < 0:
         raise ValueError(f"acceptance_radius_m must not be negative, got {acceptance_radius_m}")
     route = Route.of(trajectory)
-    if autopilot == Autopilot.ARDUPILOT:
+    if not holds:
+        route = Route(route.xy, route.arrive, np.zeros(len(route)))
+    elif autopilot == Autopilot.ARDUPILOT:
         route = route.whole_second_holds()
     lat, lon = frame.to_geodetic(route.xy[:, 0], route.xy[:, 1])
     x, y = to_e7(lat), to_e7(lon)

@@ -61,18 +61,19 @@ def write_plan(mission: Mission, path: str | Path) -> None:
     Path(path).write_text(plan_text(mission))
 
 
-def plan_text(mission: Mission) -> str:
-    return json.dumps(plan_document(mission), indent=4, allow_nan=False) + "\n"
+def plan_text(mission: Mission, notes: str | None = None) -> str:
+    return json.dumps(plan_document(mission, notes), indent=4, allow_nan=False) + "\n"
 
 
-def plan_document(mission: Mission) -> dict[str, Any]:
-    """The `.plan` JSON of a mission, geofence and rally points empty."""
+def plan_document(mission: Mission, notes: str | None = None) -> dict[str, Any]:
+    """The `.plan` JSON of a mission, geofence and rally points empty; `notes` go in a
+    top-level key of their own, which QGroundControl and MAVSDK pass over."""
     home, items = _split_home(mission)
     speed = next(
         (i.params[1] for i in items if i.command == Command.DO_CHANGE_SPEED and i.params[1] > 0),
         DEFAULT_HOVER_SPEED,
     )
-    return {
+    document: dict[str, Any] = {
         "fileType": "Plan",
         "version": 1,
         "groundStation": GROUND_STATION,
@@ -89,6 +90,9 @@ def plan_document(mission: Mission) -> dict[str, Any]:
         "geoFence": {"version": 2, "circles": [], "polygons": []},
         "rallyPoints": {"version": 2, "points": []},
     }
+    if notes:
+        document["notes"] = notes
+    return document
 
 
 def _split_home(mission: Mission) -> tuple[Home, tuple[MissionItem, ...]]:

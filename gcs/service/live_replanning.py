@@ -42,7 +42,8 @@ async def replan_flight(
     finish: Finish,
     turn_radius_m: float,
 ) -> ReplanOutcome:
-    """`scenario` and `plan` are as flown (paced): the fleet's clock is the plan's."""
+    """`scenario` and `plan` are as flown (at the flight's speed): the fleet's clock is the
+    plan's."""
     frame = GridFrame.of(scenario)
     now = fleet.plan_time()
     positions = _positions(fleet, frame)
@@ -66,8 +67,11 @@ async def replan_flight(
             altitude_m=altitude_m,
             finish=finish,
             acceptance_radius_m=turn_radius_m,
+            holds=False,  # the passing order makes it wait where another is in its way
         )
-    uploads = await fleet.replace_missions(missions, starts_at=result.now) if missions else {}
+    uploads = (
+        await fleet.replan(missions, dict(result.changed), starts_at=result.now) if missions else {}
+    )
     return ReplanOutcome(result, missions, uploads, _spliced(plan, result, uploads))
 
 

@@ -19,6 +19,7 @@ from gcs.service.states import JobState, StateConflict
 from gcs.service.storage import JobRepository, PlanRepository, ScenarioRepository
 from gcs.service.storage.tables import JobRow, PlanRow
 from planner.pipeline import PlannerSettings
+from planner.scenario import Scenario
 
 log = logging.getLogger("mvo_gcs.planning")
 J = JobState
@@ -35,14 +36,22 @@ class PlanningService:
     _tasks: dict[str, asyncio.Task[None]] = field(default_factory=dict)
     _watchers: dict[str, set[asyncio.Queue[JobRow]]] = field(default_factory=dict)
     _reports: set[asyncio.Task[None]] = field(default_factory=set)  # progress being stored
+    _stopping: bool = False
 
-    async def request(self, scenario_id: str, settings: PlannerSettings, wait_s: float) -> JobRow:
-        """Start a job; return it once done or after `wait_s`, whichever comes first."""
+    async def request(
+        self, scenario_id: str, settings: PlannerSettings, wait_s: float, clearance_m: float = 0.0
+    ) -> JobRow:
+        """Start a job; return it once done or after `wait_s`, whichever comes first. The
+        plan keeps `clearance_m` beyond 2R between UAVs (room to stray in flight)."""
         scenario = await self.scenarios.get(scenario_id)
         job = await self.jobs.add(
-            JobRow(scenario_id=scenario_id, settings=_settings_json(settings))
+            JobRow(
+                scenario_id=scenario_id,
+                settings={**_settings_json(settings), "clearance_m": clearance_m},
+            )
         )
-        task = asyncio.ensure_future(self._run(job.id, scenario.body, settings))
+        planned = Scenario(**scenario.body).with_clearance(clearance_m).model_dump(mode="json")
+        task = asyncio.ensure_future(self._run(job.id, planned, settings))
         self._tasks[job.id] = task
         task.add_done_callback(lambda _: self._tasks.pop(job.id, None))
         await asyncio.wait({task}, timeout=wait_s)
@@ -55,8 +64,11 @@ class PlanningService:
         try:
             body = await self.pool.submit(job_id, scenario, settings)
         except (PlanCancelled, asyncio.CancelledError):
-            await self._set(job_id, J.CANCELLED, error="cancelled on request")
-            self.metrics.plans.labels("cancelled").inc()
+            if self._stopping:  # not the user's doing: as after a crash (Database.recover)
+                await self._set(job_id, J.INTERRUPTED, error="the service stopped")
+            else:
+                await self._set(job_id, J.CANCELLED, error="cancelled on request")
+                self.metrics.plans.labels("cancelled").inc()
         except Exception as exc:  # a planner bug must end the job, not the service
             await self._set(job_id, J.FAILED, error=f"{type(exc).__name__}: {exc}")
             self.metrics.plans.labels("failed").inc()
@@ -125,6 +137,7 @@ class PlanningService:
                 queue.put_nowait(job)
 
     async def shutdown(self) -> None:
+        self._stopping = True
         for task in list(self._tasks.values()):
             task.cancel()
         if self._tasks:

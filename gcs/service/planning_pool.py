@@ -138,6 +138,7 @@ class ThreadPlanner:
         self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings
     ) -> asyncio.Future[dict[str, Any]]:
         assert self._loop is not None, "start() first"
+        self._cancelled.setdefault(job_id, False)  # so that shutdown() can cancel it
         return self._loop.run_in_executor(
             self._threads, run_plan, job_id, scenario, asdict(settings), self, self._cancelled
         )

@@ -1,8 +1,11 @@
-"""Generated crossing scenarios: UAVs on a ring around the centre fly to the opposite side.
+"""Generated scenarios: crossings through a centre, random traffic, swaps through a gap.
 
-Every UAV's straight line passes near the centre at about the same time, which is
-the hard case for a multi-UAV planner; random obstacles and non-UAV objects make
-the grid cluttered. A seed gives the same scenario on any machine.
+In a crossing, UAVs on a ring around the centre fly to the opposite side: every UAV's
+straight line passes near the centre at about the same time, the hard case for a
+multi-UAV planner; random obstacles and non-UAV objects clutter the grid. In a gap
+swap, two groups on either side of a wall trade places through one narrow opening:
+everyone must pass the same cells, one after another. A seed gives the same scenario
+on any machine.
 """
 
 from __future__ import annotations
@@ -130,3 +133,35 @@ def _spread(candidates: np.ndarray, count: int, min_gap: float) -> list[int]:
         if not taken or np.min(np.hypot(*(candidates[taken] - cell).T)) >= min_gap:
             taken.append(k)
     return taken
+
+
+def gap_swap_scenario(seed: int, *, size: int = 10, uavs: int = 6, gap: int = 2) -> Scenario:
+    """A wall across the middle of the grid with a `gap`-cell opening at a random height;
+    `uavs` UAVs (even), half on each side, each flying to a random cell on the other side,
+    so that all of them pass the opening."""
+    if uavs % 2 or uavs < 2:
+        raise ValueError(f"a gap swap needs an even number of UAVs, got {uavs}")
+    rng = np.random.default_rng(seed)
+    wall = size // 2
+    opening = int(rng.integers(1, size - gap))
+    left = [(x, y) for x in range(wall - 1) for y in range(size)]
+    right = [(x, y) for x in range(wall + 2, size) for y in range(size)]
+    half = uavs // 2
+    if 2 * uavs > min(len(left), len(right)):
+        raise ValueError(f"a {size}x{size} grid has no room for {uavs} UAVs on two sides")
+    sides = [rng.permutation(len(left))[: 2 * half], rng.permutation(len(right))[: 2 * half]]
+    starts = [left[i] for i in sides[0][:half]] + [right[i] for i in sides[1][:half]]
+    goals = [right[i] for i in sides[1][half:]] + [left[i] for i in sides[0][half:]]
+    blocked = [(wall, y) for y in range(size) if not opening <= y < opening + gap]
+    return load_scenario(
+        {
+            "name": f"gap-swap-{seed}",
+            "grid": {"width": size, "height": size, "cell_size_m": 10.0},
+            "uavs": [
+                {"id": f"uav{k + 1}", "start": list(s), "goal": list(g)}
+                for k, (s, g) in enumerate(zip(starts, goals, strict=True))
+            ],
+            "obstacles": [list(c) for c in blocked],
+            "non_uav_objects": [],
+        }
+    )

@@ -17,6 +17,7 @@ from gcs.mavlink.connection import Signing
 from gcs.mavlink.endpoint import EndpointError
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.transport import TransportOpener, open_transport
+from gcs.mission.flight_plan import UnsafeSpeed
 from gcs.service.api.auth import ensure_token
 from gcs.service.api.deps import Services
 from gcs.service.api.request_guard import RequestGuard
@@ -135,6 +136,12 @@ def _announce(settings: Settings, token: str, token_file: Path | None) -> None:
         print(f"mvo-gcs: token {token}", flush=True)
 
 
+async def _unsafe_speed(_: Request, exc: Exception) -> JSONResponse:
+    """422, with the highest speed the ground station can keep safe, for a client to offer."""
+    highest = exc.highest_safe_m_s if isinstance(exc, UnsafeSpeed) else None
+    return JSONResponse({"detail": str(exc), "highest_safe_speed_m_s": highest}, status_code=422)
+
+
 def _add_error_handlers(app: FastAPI) -> None:
     def problem(status: int) -> Callable[[Request, Exception], Awaitable[JSONResponse]]:
         async def handler(_: Request, exc: Exception) -> JSONResponse:
@@ -155,6 +162,7 @@ def _add_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(vehicles.AlreadyRegistered, problem(409))
     app.add_exception_handler(VehicleOffline, problem(409))
     app.add_exception_handler(BadBindings, problem(422))
+    app.add_exception_handler(UnsafeSpeed, _unsafe_speed)
     app.add_exception_handler(BadObject, problem(422))
     app.add_exception_handler(EndpointError, problem(422))
     app.add_exception_handler(vehicles.BadConnection, problem(422))

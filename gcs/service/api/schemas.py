@@ -8,7 +8,8 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator
 
 from gcs.mission.build import DEFAULT_ALTITUDE_M
-from gcs.mission.pacing import DEFAULT_MAX_SPEED_M_S, TURN_RADIUS_M
+from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, MAX_SPEED_M_S, TURN_RADIUS_M
+from gcs.mission.motion import DEFAULT_SPEED_M_S
 from gcs.service.states import JobState
 from planner.optimizers import ALGORITHMS
 from planner.plan import Metrics, Plan
@@ -41,11 +42,12 @@ class MissionShape(BaseModel):
     altitude_m: float = Field(default=DEFAULT_ALTITUDE_M, gt=0, le=1000, description="above home")
     finish: Literal["land", "rtl"] = "land"
     max_speed_m_s: float = Field(
-        default=DEFAULT_MAX_SPEED_M_S,
+        default=DEFAULT_SPEED_M_S,
         gt=0,
-        le=50,
-        description="fly the plan no faster than this: the whole plan is slowed by one factor, "
-        "keeping every relative position, so acceleration lag stays small",
+        le=MAX_SPEED_M_S,
+        description="the cruise speed of the plan's fastest UAV (the others keep their "
+        "relative speeds); a speed the ground station cannot keep safe for the plan and "
+        "its vehicles is refused with 422, naming the highest one it can",
     )
     turn_radius_m: float = Field(
         default=TURN_RADIUS_M, ge=0, le=50, description="waypoint acceptance radius"
@@ -94,6 +96,14 @@ class PlanRequest(_In):
         description="wall seconds for the whole plan: a safe plan as early as possible, "
         "improved while the budget lasts; null: no time bound, the iterations and "
         "`patience` bound it and the same seed gives the same plan",
+    )
+    clearance_m: float = Field(
+        default=DEFAULT_CLEARANCE_M,
+        ge=0,
+        le=10,
+        description="metres beyond 2R the plan keeps between UAVs (and beyond R from "
+        "obstacles), room for vehicles straying off their paths in flight; the flight "
+        "refuses a speed at which they may stray further than the plan leaves room for",
     )
     patience: int | None = Field(
         default=100,
@@ -146,3 +156,19 @@ class Problem(BaseModel):
     """Every 4xx answer: what is wrong, and where when it is in the request."""
 
     detail: str | list[dict[str, Any]]
+
+
+class SpeedProblem(Problem):
+    """A 422: the request is invalid, or asks for a speed the ground station cannot keep
+    safe for this plan and these vehicles (then with the highest it can)."""
+
+    highest_safe_speed_m_s: float | None = None
+
+
+UNSAFE_SPEED: dict[int | str, dict[str, Any]] = {
+    422: {
+        "model": SpeedProblem,
+        "description": "an invalid request, or a speed the ground station cannot keep safe "
+        "for this plan and these vehicles (`highest_safe_speed_m_s` says what it can)",
+    }
+}

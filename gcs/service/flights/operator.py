@@ -44,6 +44,9 @@ class OperatorCommands:
         self.book: FlightBook = flights.book
         self.registry = registry
         self._watchers: dict[str, asyncio.Task[None]] = {}
+        self._owed: dict[str, tuple[Fallback, set[str]]] = {}
+        """Per aborting flight: the abort's action, and the vehicles it has not reached yet
+        (offline when it was sent, or it failed): sent to each as soon as it can be."""
 
     # --- the fleet ---------------------------------------------------------------------
 
@@ -72,6 +75,8 @@ class OperatorCommands:
                     await self.book.transition(
                         flight_id, F.ABORTING, f"{fallback.value} by the operator"
                     )
+            missed = {row.bindings[uav] for uav in row.bindings if not _done(outcomes.get(uav))}
+            self._owed[flight_id] = (fallback, missed)
             self.watch_until_down(flight_id)
             return _answers(row, outcomes, asked)
 
@@ -186,6 +191,7 @@ class OperatorCommands:
             state = await self.book.state(flight_id)
             if not state.is_open or state not in (F.ABORTING, F.INTERRUPTED):
                 break
+            await self._pay_what_is_owed(flight_id)
             if self._all_down(flight_id, bindings.values()):
                 down_since = _now() if down_since is None else down_since
                 if _now() - self._settled_since(down_since, bindings.values()) >= SETTLE_S:
@@ -198,6 +204,19 @@ class OperatorCommands:
                 down_since = None
             await asyncio.sleep(DOWN_POLL_S)
         self._watchers.pop(flight_id, None)
+        self._owed.pop(flight_id, None)
+
+    async def _pay_what_is_owed(self, flight_id: str) -> None:
+        """The abort to the vehicles it has not reached yet, now that they can be."""
+        fallback, missed = self._owed.get(flight_id, (Fallback.LAND, set()))
+        for vehicle_id in sorted(missed):
+            link = self.registry.link_or_none(vehicle_id)
+            if link is None:
+                continue  # not back yet
+            with contextlib.suppress(GcsError):
+                if not link.state.down:
+                    await _fallback_action(fallback)(FlightActions(link))
+                missed.discard(vehicle_id)
 
     def _all_down(self, flight_id: str, vehicle_ids: Iterable[str]) -> bool:
         """Every vehicle disarmed on the ground, and nothing of the flight still running
@@ -277,6 +296,10 @@ async def _on_link(actions: FlightActions, action: VehicleAction, who: str) -> V
     return VehicleOutcome(who, True, "ok")
 
 
+def _done(outcome: VehicleOutcome[Any] | None) -> bool:
+    return outcome is not None and outcome.ok
+
+
 def _fallback_action(fallback: Fallback) -> Callable[[FlightActions], Awaitable[Any]]:
     if fallback == Fallback.LAND:
         return lambda a: a.land()
@@ -288,17 +311,18 @@ def _fallback_action(fallback: Fallback) -> Callable[[FlightActions], Awaitable[
 def _answers(
     row: FlightRow, outcomes: dict[str, VehicleOutcome[Any]], asked: float
 ) -> list[VehicleAnswer]:
+    """Each vehicle's answer, with the seconds from the request to that vehicle's own
+    answer (to the whole operation's end where it was not timed alone)."""
     elapsed = _now() - asked
-    return [
-        VehicleAnswer(
-            uav,
-            vid,
-            uav in outcomes and outcomes[uav].ok,
-            outcomes[uav].detail if uav in outcomes else "not commanded",
-            elapsed,
-        )
-        for uav, vid in sorted(row.bindings.items())
-    ]
+    answers = []
+    for uav, vid in sorted(row.bindings.items()):
+        outcome = outcomes.get(uav)
+        if outcome is None:
+            answers.append(VehicleAnswer(uav, vid, False, "not commanded", elapsed))
+            continue
+        own = elapsed if outcome.seconds is None else min(elapsed, outcome.seconds)
+        answers.append(VehicleAnswer(uav, vid, outcome.ok, outcome.detail, own))
+    return answers
 
 
 def _now() -> float:

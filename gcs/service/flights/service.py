@@ -21,15 +21,18 @@ from gcs.fleet.crew import FleetSettings
 from gcs.fleet.events import Progress
 from gcs.fleet.fleet import Fleet
 from gcs.fleet.outcome import VehicleOutcome
+from gcs.fleet.vehicle_limits import read_limits
+from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.link import VehicleLink
+from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.files import plan_document
-from gcs.mission.pacing import PacedFlight, paced_flight
+from gcs.mission.flight_plan import FlightPlan, flight_plan
 from gcs.service.flights.active import ActiveFlight, VehicleAnswer, event_json
 from gcs.service.flights.book import FlightBook
 from gcs.service.flights.slot import Preempted
 from gcs.service.live_replanning import replan_flight
 from gcs.service.metrics import ServiceMetrics
-from gcs.service.states import FlightState, StateConflict
+from gcs.service.states import AIRBORNE, FlightState, StateConflict
 from gcs.service.storage import PlanRepository, ScenarioRepository, VehicleRepository
 from gcs.service.storage.tables import FlightRow, UploadRow
 from gcs.service.vehicle_registry import VehicleRegistry
@@ -41,6 +44,7 @@ from planner.trajectory import Trajectory
 log = logging.getLogger("mvo_gcs.flights")
 F = FlightState
 TRACK_PERIOD_S = 1.0  # wall seconds between stored positions (the flown tracks)
+HOLD_ON_STOP_S = 3.0  # how long a stopping service tries to hold each airborne vehicle
 
 
 class BadObject(ValueError):
@@ -72,8 +76,10 @@ class FlightService:
     async def create(
         self, plan_id: str, bindings: dict[str, str], options: dict[str, Any]
     ) -> FlightRow:
-        """Bind every UAV of a feasible plan to a distinct registered vehicle."""
-        plan = Plan(**(await self.plans.get(plan_id)).body)
+        """Bind every UAV of a feasible plan to a distinct registered vehicle, at a speed the
+        ground station can keep safe for that plan (UnsafeSpeed otherwise: nothing made)."""
+        plan_row = await self.plans.get(plan_id)
+        plan = Plan(**plan_row.body)
         if not plan.feasible:
             raise StateConflict(f"plan {plan_id} is infeasible: it is not safe to fly")
         uavs = {u.id for u in plan.uavs}
@@ -87,6 +93,10 @@ class FlightService:
             raise BadBindings("bindings: each UAV needs its own vehicle")
         for vehicle_id in bindings.values():
             await self.vehicles.get(vehicle_id)
+        scenario = Scenario(**(await self.scenarios.get(plan_row.scenario_id)).body)
+        if scenario.origin is not None:
+            autopilots = dict.fromkeys(uavs, Autopilot.ARDUPILOT)
+            await asyncio.to_thread(flight_plan, plan, scenario, autopilots, **options)
         row: FlightRow = await self.book.flights.add(
             FlightRow(plan_id=plan_id, bindings=bindings, options=options)
         )
@@ -103,13 +113,12 @@ class FlightService:
             FlightState(row.state).check(F.UPLOADING, flight_id)
             plan, scenario = await self._flyable(row)
             links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
-            autopilots = {uav: link.autopilot for uav, link in links.items()}
-            paced = paced_flight(plan, scenario, autopilots, **row.options)
+            flight = await _flight_for(plan, scenario, links, row.options)
             async with self.book.claims:
                 await self.book.refuse_owned(row.bindings, flight_id)
                 _refuse_airborne(row, links)
                 await self.book.transition(flight_id, F.UPLOADING)
-            active = self._activate(row, links, paced)
+            active = self._activate(row, links, flight)
             try:
                 outcomes = await slot.run(self._upload(active))
             except Preempted:
@@ -128,15 +137,15 @@ class FlightService:
         return Plan(**plan_row.body), scenario
 
     def _activate(
-        self, row: FlightRow, links: dict[str, VehicleLink], paced: PacedFlight
+        self, row: FlightRow, links: dict[str, VehicleLink], flight: FlightPlan
     ) -> ActiveFlight:
         old = self.book.active.pop(row.id, None)
         if old is not None:
             old.fleet.close()
-        fleet = Fleet(links, paced.missions, settings=self.fleet_settings)
+        fleet = Fleet(links, flight, settings=self.fleet_settings)
         active = ActiveFlight(
-            row.id, fleet, paced.scenario, paced.plan, paced.missions, dict(row.bindings),
-            dict(row.options), paced.factor,
+            row.id, fleet, flight.scenario, flight.plan, flight.missions, dict(row.bindings),
+            dict(row.options), flight.factor,
         )  # fmt: skip
         self.book.active[row.id] = active
         active.pump = asyncio.ensure_future(self._pump(active))
@@ -153,7 +162,7 @@ class FlightService:
                 UploadRow(
                     flight_id=active.flight_id, uav_id=uav, vehicle_id=active.vehicles[uav],
                     ok=outcome.ok, items=len(mission), detail=outcome.detail,
-                    mission=plan_document(mission),
+                    mission=plan_document(mission, active.fleet.crew.flight.notes(uav)),
                 )
             )  # fmt: skip
         ok = all(o.ok for o in outcomes.values())
@@ -286,7 +295,9 @@ class FlightService:
                 UploadRow(
                     flight_id=active.flight_id, uav_id=uav, vehicle_id=active.vehicles[uav],
                     ok=upload.ok, items=len(mission), detail=f"live replan: {upload.detail}",
-                    mission=plan_document(mission) if upload.ok else None,
+                    mission=plan_document(mission, active.fleet.crew.flight.notes(uav))
+                    if upload.ok
+                    else None,
                 )
             )  # fmt: skip
         pace = active.pace_factor
@@ -310,8 +321,9 @@ class FlightService:
                 for u, o in sorted(outcome.uploads.items())
             ],
         }
-        self.book.events.record(active.flight_id, "ObjectReported", {"type": "event", **answer})
-        self.book.tell(active.flight_id, {"type": "event", "kind": "ObjectReported", **answer})
+        message = {"type": "event", "kind": "ObjectReported", **answer}
+        self.book.events.record(active.flight_id, "ObjectReported", message)
+        self.book.tell(active.flight_id, message)
         return answer
 
     # --- releasing and deleting ----------------------------------------------------------
@@ -381,13 +393,55 @@ class FlightService:
         return answers
 
     async def close(self) -> None:
-        """The service stops: stop following (the vehicles fly on; a restart finds the
-        flights `interrupted`, still owning their vehicles)."""
+        """The service stops. No vehicle may fly on unfollowed (nothing would keep the
+        passing order), so every one in the air is told to hold where it is, and its
+        flight becomes `interrupted`, still owning its vehicles: after a restart the
+        operator brings them down (abort: land or return)."""
         for flight_id in list(self.book.active):
             await self.book.slot(flight_id).preempt()
             active = self.book.forget(flight_id)
-            if active is not None:
-                active.fleet.close()
+            if active is None:
+                continue
+            active.fleet.close()
+            if await self.book.state(flight_id) in AIRBORNE:
+                held = await _hold_airborne(active)
+                await self.to_interrupted(
+                    flight_id, f"the ground station stopped; held where they were: {held}"
+                )
+
+
+async def _flight_for(
+    plan: Plan, scenario: Scenario, links: dict[str, VehicleLink], options: dict[str, Any]
+) -> FlightPlan:
+    """The plan at the flight's speed with each vehicle's own limits (UnsafeSpeed if the
+    ground station cannot keep it safe with them); computed off the event loop."""
+    read = await asyncio.gather(*(read_limits(link) for link in links.values()))
+    limits = dict(zip(links, read, strict=True))
+    autopilots = {uav: link.autopilot for uav, link in links.items()}
+    flight = await asyncio.to_thread(
+        flight_plan, plan, scenario, autopilots, limits=limits, **options
+    )
+    await asyncio.to_thread(lambda: flight.timed)  # the schedule, before the loop needs it
+    return flight
+
+
+async def _hold_airborne(active: ActiveFlight) -> list[str]:
+    """Hold every vehicle of the flight that is in the air (a bounded try each: the
+    service is stopping); the UAVs that confirmed."""
+
+    async def hold(uav: str, link: VehicleLink) -> str | None:
+        if not link.state.airborne:
+            return None
+        with contextlib.suppress(Exception):
+            async with asyncio.timeout(HOLD_ON_STOP_S):
+                await FlightActions(link).hold()
+                return uav
+        log.warning("flight %s: %s did not confirm its hold", active.flight_id, uav)
+        return None
+
+    members = active.fleet.crew.members
+    held = await asyncio.gather(*(hold(uav, m.link) for uav, m in sorted(members.items())))
+    return [uav for uav in held if uav is not None]
 
 
 def _refuse_airborne(row: FlightRow, links: dict[str, VehicleLink]) -> None:

@@ -23,7 +23,7 @@ from gcs.service.api.deps import (
     get_services,
     mutating,
 )
-from gcs.service.api.schemas import MAX_PAGE, MissionShape, Problem, UtcDatetime
+from gcs.service.api.schemas import MAX_PAGE, UNSAFE_SPEED, MissionShape, Problem, UtcDatetime
 from gcs.service.flights.active import VehicleAnswer
 from gcs.service.states import FlightState
 from gcs.service.storage import NotFound
@@ -174,7 +174,7 @@ async def _action(
     "",
     status_code=status.HTTP_201_CREATED,
     operation_id="createFlight",
-    **mutating({**ANSWERS, 201: {"links": _links(*FLIGHT_OPERATIONS)}}),
+    **mutating({**ANSWERS, **UNSAFE_SPEED, 201: {"links": _links(*FLIGHT_OPERATIONS)}}),
 )
 async def create_flight(flight: FlightIn, flights: FlightsDep) -> FlightOut:
     """Bind every UAV of a feasible plan to a registered vehicle."""
@@ -199,7 +199,9 @@ async def get_flight(flight_id: str, flights: FlightsDep) -> FlightOut:
     return flight_out(await flights.book.row(flight_id))
 
 
-@router.post("/{flight_id}/upload", operation_id="uploadFlight", **mutating(ANSWERS))
+@router.post(
+    "/{flight_id}/upload", operation_id="uploadFlight", **mutating({**ANSWERS, **UNSAFE_SPEED})
+)
 async def upload(flight_id: str, flights: FlightsDep) -> FlightAction:
     """Upload every UAV's mission at once, each verified by reading it back. From now on the
     vehicles belong to this flight, until it has ended with all of them on the ground.
@@ -224,7 +226,7 @@ async def start(flight_id: str, flights: FlightsDep) -> FlightOut:
 @router.post("/{flight_id}/pause", operation_id="pauseFlight", **mutating(ANSWERS))
 async def pause(flight_id: str, flights: FlightsDep, operator: OperatorDep) -> FlightAction:
     """The operator's fleet hold: every vehicle stops where it is until `/continue` (the
-    schedule keeper never lifts it). During the start it cancels the start."""
+    passing order never lifts it). During the start it cancels the start."""
     return await _action(flights, flight_id, await operator.hold(flight_id))
 
 
@@ -311,9 +313,11 @@ async def flight_mission_file(
     if not uploads:
         await records.get(flight_id)
         raise NotFound(f"upload of flight {flight_id} for UAV", uav_id)
-    mission = parse_plan_document(uploads[-1].mission)
+    document = uploads[-1].mission
+    mission = parse_plan_document(document)
     if extension == "plan":
-        return _attachment(plan_text(mission), f"{uav_id}.plan", "application/json")
+        notes = (document or {}).get("notes")
+        return _attachment(plan_text(mission, notes), f"{uav_id}.plan", "application/json")
     return _attachment(waypoints_text(mission), f"{uav_id}.waypoints", "text/plain")
 
 

@@ -9,6 +9,7 @@ as the service would fly it. What a flight actually uploaded is at
 
 from __future__ import annotations
 
+import asyncio
 from dataclasses import asdict
 from typing import Annotated, Any, Literal
 
@@ -18,9 +19,9 @@ from pydantic import BaseModel
 
 from gcs.mavlink.mission_item import Autopilot, Mission
 from gcs.mission.files import plan_text, waypoints_text
-from gcs.mission.pacing import paced_flight
+from gcs.mission.flight_plan import FlightPlan, UnsafeSpeed, flight_plan
 from gcs.service.api.deps import PlansDep, ScenariosDep
-from gcs.service.api.schemas import MissionShape, Problem
+from gcs.service.api.schemas import UNSAFE_SPEED, MissionShape, Problem
 from gcs.service.storage import NotFound
 from planner.plan import Plan
 from planner.scenario import Scenario
@@ -30,6 +31,7 @@ AutopilotName = Literal["ardupilot", "px4"]
 ANSWERS: dict[int | str, dict[str, Any]] = {
     404: {"model": Problem, "description": "no such plan or UAV"},
     409: {"model": Problem, "description": "the plan cannot be flown (infeasible, no origin)"},
+    **UNSAFE_SPEED,
 }
 
 
@@ -61,15 +63,16 @@ class UnflyablePlan(Exception):
     """The plan exists but cannot become missions; answered 409."""
 
 
-async def plan_missions(
+async def plan_flight(
     plans: PlansDep, scenarios: ScenariosDep, plan_id: str, options: MissionOptions
-) -> dict[str, Mission]:
+) -> FlightPlan:
     row = await plans.get(plan_id)
     scenario = Scenario(**(await scenarios.get(row.scenario_id)).body)
     plan = Plan(**row.body)
     autopilot = Autopilot[options.autopilot.upper()]
     try:
-        paced = paced_flight(
+        flight = await asyncio.to_thread(
+            flight_plan,
             plan,
             scenario,
             dict.fromkeys((u.id for u in plan.uavs), autopilot),
@@ -78,18 +81,21 @@ async def plan_missions(
             max_speed_m_s=options.max_speed_m_s,
             turn_radius_m=options.turn_radius_m,
         )
+    except UnsafeSpeed:
+        raise
     except ValueError as exc:
         raise UnflyablePlan(str(exc)) from exc
-    return paced.missions
+    return flight
 
 
 async def _one(
     plans: PlansDep, scenarios: ScenariosDep, plan_id: str, uav_id: str, options: MissionOptions
-) -> Mission:
-    missions = await plan_missions(plans, scenarios, plan_id, options)
-    if uav_id not in missions:
+) -> tuple[Mission, str]:
+    """The UAV's mission and the notes its file carries."""
+    flight = await plan_flight(plans, scenarios, plan_id, options)
+    if uav_id not in flight.missions:
         raise NotFound(f"UAV in plan {plan_id}", uav_id)
-    return missions[uav_id]
+    return flight.missions[uav_id], flight.notes(uav_id)
 
 
 def mission_out(uav_id: str, mission: Mission) -> MissionOut:
@@ -110,8 +116,8 @@ async def get_missions(
     plan_id: str, plans: PlansDep, scenarios: ScenariosDep, options: Options
 ) -> list[MissionOut]:
     """One MISSION_ITEM_INT list per UAV (ArduPilot: item 0 is home)."""
-    missions = await plan_missions(plans, scenarios, plan_id, options)
-    return [mission_out(u, m) for u, m in missions.items()]
+    flight = await plan_flight(plans, scenarios, plan_id, options)
+    return [mission_out(u, m) for u, m in flight.missions.items()]
 
 
 @router.get(
@@ -123,7 +129,7 @@ async def download_qgc_plan(
     plan_id: str, uav_id: str, plans: PlansDep, scenarios: ScenariosDep, options: Options
 ) -> PlainTextResponse:
     """The UAV's mission as a QGroundControl `.plan` file, paced as a flight would fly it."""
-    text = plan_text(await _one(plans, scenarios, plan_id, uav_id, options))
+    text = plan_text(*await _one(plans, scenarios, plan_id, uav_id, options))
     return _attachment(text, f"{uav_id}.plan", "application/json")
 
 
@@ -143,7 +149,8 @@ async def download_waypoints(
 ) -> PlainTextResponse:
     """The UAV's mission as a `QGC WPL 110` file (Mission Planner, MAVProxy), paced as a
     flight would fly it."""
-    text = waypoints_text(await _one(plans, scenarios, plan_id, uav_id, options))
+    mission, _ = await _one(plans, scenarios, plan_id, uav_id, options)
+    text = waypoints_text(mission)
     return _attachment(text, f"{uav_id}.waypoints", "text/plain")
 
 

@@ -94,7 +94,7 @@ async def request_plan(
         patience=request.patience,
     )
     wait = settings.inline_plan_wait_s if request.wait_s is None else request.wait_s
-    job = await planning.request(scenario_id, planner_settings, wait)
+    job = await planning.request(scenario_id, planner_settings, wait, request.clearance_m)
     if job.state == JobState.DONE and job.plan_id is not None:
         return plan_out(await plans.get(job.plan_id))
     final = JobState(job.state).is_final

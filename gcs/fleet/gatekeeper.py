@@ -1,0 +1,144 @@
+"""Keeping the plan's passing order in flight: who waits for whom, stopped in time.
+
+Every look: where each vehicle is along its path (`path_progress`), how far the passing
+order lets it go while the others are where they are (`PassingOrder.limit`), and what
+the stopping rule makes of the gap at its speed (`StoppingRule.decide`): fly on, stop
+(DO_PAUSE_CONTINUE, or a brake where ArduCopter will not pause), or edge up to the limit
+slowly (DO_CHANGE_SPEED) because someone else waits for it to pass a point before it.
+A vehicle waits only for those its path meets, never for a clock: a late take-off, an
+operator's hold or a lost link delays the vehicles that depend on that one, and nobody
+else. A vehicle down for good (landed at its goal, or sent down) is in nobody's way.
+
+The commands to one vehicle go out one at a time, in their own task, so a vehicle that
+answers slowly (a lossy link) never holds up the decisions about the others; if the
+decision changes meanwhile, the latest one is what the vehicle is brought to.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from gcs.fleet.path_progress import PathProgress
+from gcs.mavlink.actions import FlightActions
+from gcs.mavlink.errors import GcsError
+from gcs.mission.motion import CopterLimits, Gate, StoppingRule
+from gcs.mission.passing_order import PassingOrder
+
+
+@dataclass(frozen=True)
+class GateChange:
+    uav_id: str
+    gate: Gate
+    waits_for: str | None
+    gap_m: float
+
+
+class Gatekeeper:
+    """The gate states of a fleet, decided from where everyone is."""
+
+    def __init__(
+        self,
+        order: PassingOrder,
+        limits: Mapping[str, CopterLimits],
+        rule: StoppingRule | None = None,
+    ) -> None:
+        self.order = order
+        self.limits = dict(limits)
+        self.rule = rule or StoppingRule()
+        self.gates = dict.fromkeys(self.limits, Gate.GO)
+        self.waits_for: dict[str, str | None] = dict.fromkeys(self.limits)
+        self.gone: set[str] = set()
+
+    def decide(
+        self, progress: Mapping[str, PathProgress], gated: Iterable[str]
+    ) -> list[GateChange]:
+        """New gates of the vehicles in `gated` (the others keep theirs); the changes."""
+        at = {uav: np.inf if uav in self.gone else p.s for uav, p in progress.items()}
+        chosen = [uav for uav in gated if uav not in self.gone]
+        limits = {uav: self.order.limit(uav, at) for uav in chosen}
+        waited_on = {limit.leader for limit in limits.values() if limit.leader is not None}
+        changes = []
+        for uav in chosen:
+            p, limit = progress[uav], limits[uav]
+            gap = limit.at_m - p.s
+            gate = self.rule.decide(
+                self.gates[uav], gap, p.speed, p.accel, self.limits[uav], uav in waited_on
+            )
+            waits_for = limit.leader if gate != Gate.GO else None
+            if gate != self.gates[uav] or waits_for != self.waits_for[uav]:
+                changes.append(GateChange(uav, gate, waits_for, gap))
+            self.gates[uav], self.waits_for[uav] = gate, waits_for
+        return changes
+
+    def replan(self, order: PassingOrder, limits: Mapping[str, CopterLimits]) -> None:
+        """A new order (a live replan); the gates stay as they are until the next look."""
+        self.order, self.limits = order, dict(limits)
+
+    def out_of_the_way(self, uav_id: str) -> None:
+        """`uav_id` is down for good: nobody waits for it any more, nor it for anyone."""
+        self.gone.add(uav_id)
+        self.gates[uav_id], self.waits_for[uav_id] = Gate.GO, None
+
+
+class GateCommander:
+    """Brings each vehicle to its gate with the commands that change it, one vehicle's at
+    a time; `cruise(uav)` is the speed its mission flies it at where it is now."""
+
+    def __init__(
+        self,
+        actions: Mapping[str, FlightActions],
+        rule: StoppingRule,
+        cruise: Callable[[str], float],
+        on_failure: Callable[[str, str], None],
+    ) -> None:
+        self._actions = actions
+        self._rule = rule
+        self._cruise = cruise
+        self._on_failure = on_failure
+        self.applied = dict.fromkeys(actions, Gate.GO)
+        self._wanted = dict.fromkeys(actions, Gate.GO)
+        self._tasks: dict[str, asyncio.Task[None]] = {}
+
+    def want(self, uav_id: str, gate: Gate) -> None:
+        self._wanted[uav_id] = gate
+        task = self._tasks.get(uav_id)
+        if task is None or task.done():
+            self._tasks[uav_id] = asyncio.ensure_future(self._bring(uav_id))
+
+    def settle(self, uav_id: str, gate: Gate) -> None:
+        """The vehicle is at `gate` by other means (the operator held or continued it)."""
+        self.applied[uav_id] = self._wanted[uav_id] = gate
+
+    async def _bring(self, uav_id: str) -> None:
+        while self.applied[uav_id] != self._wanted[uav_id]:
+            target = self._wanted[uav_id]
+            try:
+                await self._change(uav_id, self.applied[uav_id], target)
+            except GcsError as exc:
+                self._on_failure(uav_id, f"could not {target.value}: {exc}")
+                return
+            self.applied[uav_id] = target
+
+    async def _change(self, uav_id: str, old: Gate, new: Gate) -> None:
+        actions = self._actions[uav_id]
+        if new == Gate.STOP:
+            await actions.pause_mission()
+            return
+        if new == Gate.CREEP:
+            await actions.change_speed(self._rule.creep_m_s)
+        elif old == Gate.CREEP:
+            await actions.change_speed(self._cruise(uav_id))
+        if old == Gate.STOP:
+            await actions.resume_mission()
+
+    async def close(self) -> None:
+        for task in self._tasks.values():
+            task.cancel()
+        for task in self._tasks.values():
+            with contextlib.suppress(asyncio.CancelledError, GcsError):
+                await task

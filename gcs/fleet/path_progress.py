@@ -1,0 +1,86 @@
+"""How far along its path a vehicle is, in metres, from the positions it reports.
+
+The passing order speaks of places along each path (`gcs.mission.passing_order`); a
+vehicle reports latitude and longitude. Each new position is put in the grid's metres
+and projected onto the path near where the vehicle was last: never behind it by more
+than a little (a vehicle rounding a corner within its waypoint radius projects onto
+either leg; a step backwards is noise), and never further ahead than it can have flown
+since (a path that comes back near itself must not make a vehicle look far along it).
+Its speed along the path and its acceleration come from the reports' own clock
+(time_boot_ms), so a slow link or a loaded machine does not make a vehicle look slower
+than it is.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gcs.mavlink.vehicle_state import VehicleState
+from gcs.mission.geodesy import GridFrame
+from gcs.mission.passing_order import PlannedPath
+
+LOOK_AHEAD_M = 3.0
+"""How far beyond its last place a new position is looked for, besides twice what it can
+have flown since the last one at its speed."""
+BACKWARDS_M = 0.5
+"""How far back a projection may fall before it is taken as noise."""
+ACCEL_SMOOTHING = 0.5
+
+
+class PathProgress:
+    """One vehicle's distance along its path, speed and acceleration."""
+
+    def __init__(self, path: PlannedPath, frame: GridFrame) -> None:
+        self._frame = frame
+        self.speed = 0.0
+        self.accel = 0.0
+        self.s = 0.0
+        self._time_ms: int | None = None
+        self.restart(path)
+
+    def update(self, state: VehicleState) -> bool:
+        """Take the vehicle's latest position, if new; True if it was."""
+        position = state.position
+        if position is None or position.time_boot_ms == self._time_ms:
+            return False
+        x, y = self._frame.to_cells(position.lat, position.lon)
+        here = np.array([float(x), float(y)]) * self._frame.cell_size_m
+        speed = float(np.hypot(*state.velocity_n_e_m_s))
+        if self._time_ms is not None and position.time_boot_ms > self._time_ms:
+            dt = (position.time_boot_ms - self._time_ms) / 1000.0
+            sample = (speed - self.speed) / dt
+            self.accel += ACCEL_SMOOTHING * (sample - self.accel)
+        reach = LOOK_AHEAD_M
+        if self._time_ms is not None:
+            elapsed = max(0.0, (position.time_boot_ms - self._time_ms) / 1000.0)
+            reach += 2.0 * max(speed, self.speed) * elapsed
+        self._time_ms = position.time_boot_ms
+        self.speed = speed
+        self.s = max(self.s, self._project(here, reach))
+        return True
+
+    def restart(self, path: PlannedPath) -> None:
+        """A path from here on (a live replan): distances count again from its start."""
+        self.path = path
+        self._s = path.s
+        self._a = path.xy[:-1]
+        self._d = np.diff(path.xy, axis=0)
+        self._len2 = np.maximum(np.einsum("ij,ij->i", self._d, self._d), 1e-12)
+        self.s = 0.0
+
+    def _project(self, here: np.ndarray, reach: float) -> float:
+        """The distance along the path of the point nearest `here`, from a little behind
+        the last place to `reach` beyond it."""
+        lo, hi = self.s - BACKWARDS_M, self.s + reach
+        legs = np.flatnonzero((self._s[1:] >= lo) & (self._s[:-1] <= hi))
+        if len(legs) == 0:
+            return self.s
+        rel = here - self._a[legs]
+        f = np.clip(np.einsum("ij,ij->i", rel, self._d[legs]) / self._len2[legs], 0.0, 1.0)
+        foot = self._a[legs] + f[:, None] * self._d[legs]
+        along = self._s[legs] + f * np.sqrt(self._len2[legs])
+        inside = (along >= lo) & (along <= hi)
+        if not inside.any():
+            return self.s
+        miss = np.where(inside, np.hypot(*(here - foot).T), np.inf)
+        return float(along[int(np.argmin(miss))])

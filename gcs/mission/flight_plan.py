@@ -1,0 +1,300 @@
+"""A plan made flyable at a real speed: missions, the passing order, the timing, a verdict.
+
+The plan's speeds are scaled by one factor so that its fastest UAV cruises at the flight
+speed (5 m/s unless the operator asks otherwise), which keeps every relative speed and
+every passing order of the plan. Each UAV's mission flies its path at those speeds with
+no waits: where the plan makes a UAV wait for another, the passing order does
+(`passing_order`), at whatever moment the other actually passes. The flight is timed as
+copters fly it (`flight_timing`), and it is refused before anything is armed when the
+ground station cannot keep it safe at that speed (`UnsafeSpeed`, naming the highest
+speed it can).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from gcs.mavlink.mission_item import Autopilot, Command, Mission
+from gcs.mission.build import DEFAULT_ALTITUDE_M, Finish, Visit, build_missions, takeoff_index
+from gcs.mission.flight_timing import TimedPath, fly
+from gcs.mission.geodesy import Floats, GridFrame
+from gcs.mission.motion import (
+    DEFAULT_SPEED_M_S,
+    CopterLimits,
+    highest_speed_for_stray,
+    stray_m,
+)
+from gcs.mission.passing_order import PassingOrder, PlannedPath
+from planner.plan import Plan
+from planner.safety import uav_conflicts
+from planner.scenario import Scenario
+from planner.trajectory import Trajectory
+
+TURN_RADIUS_M = 0.5
+"""A vehicle passing a waypoint cuts the corner by up to its acceptance radius (ArduCopter's
+default is 2 m): close, so that the path flown is the path the order was derived for."""
+MAX_SPEED_M_S = 20.0
+DEFAULT_CLEARANCE_M = 1.3
+"""What a plan made for flying keeps beyond 2R: twice what a vehicle may stray at 10 m/s
+(`stray_m`), so that the passing order can keep every pair 2R apart up to that speed."""
+"""ArduCopter's WPNAV_SPEED range ends at 20 m/s."""
+
+
+class UnsafeSpeed(ValueError):
+    """The flight cannot be kept safe at the speed asked for; answered 422."""
+
+    def __init__(self, message: str, highest_safe_m_s: float | None) -> None:
+        super().__init__(message)
+        self.highest_safe_m_s = highest_safe_m_s
+
+
+@dataclass(frozen=True)
+class FlightPlan:
+    """What the vehicles fly, and what the ground station keeps while they do."""
+
+    speed_m_s: float  # the fastest UAV's cruise
+    factor: float  # seconds of the flight per second of the plan
+    plan: Plan  # times multiplied by `factor`
+    scenario: Scenario  # speeds divided by `factor`
+    missions: dict[str, Mission]
+    paths: dict[str, PlannedPath]  # metres from the grid's origin, on the flight's clock
+    leg_speeds: dict[str, Floats]  # m/s of each leg of each path
+    limits: dict[str, CopterLimits]  # each vehicle's, at its cruise speed
+    order: PassingOrder
+    altitude_m: float
+
+    @property
+    def frame(self) -> GridFrame:
+        return GridFrame.of(self.scenario)
+
+    @cached_property
+    def timed(self) -> dict[str, TimedPath]:
+        """The flight when nothing goes wrong (computed when first asked: it is a
+        simulation of every vehicle, a second or so for ten)."""
+        return fly(self.paths, self.leg_speeds, self.limits, self.order, altitude_m=self.altitude_m)
+
+    @property
+    def duration_s(self) -> float:
+        """From the common start to the last arrival over a goal."""
+        return max(t.arrival_s for t in self.timed.values())
+
+    def min_separation_m(self) -> float:
+        """The closest two UAVs come on the timed flight (until they are down)."""
+        cell = self.scenario.grid.cell_size_m
+        trajectories = {uav: t.trajectory(cell) for uav, t in self.timed.items()}
+        radii = {u.id: u.radius for u in self.scenario.uavs}
+        return uav_conflicts(trajectories, radii)[1] * cell
+
+    def cruise_at(self, uav_id: str, along_m: float) -> float:
+        """The speed the UAV's mission flies it at `along_m` metres along its path."""
+        path, legs = self.paths[uav_id], self.leg_speeds[uav_id]
+        if len(legs) == 0:
+            return self.limits[uav_id].speed_m_s
+        k = int(np.searchsorted(path.s, along_m, side="right")) - 1
+        return float(legs[min(max(k, 0), len(legs) - 1)])
+
+    def notes(self, uav_id: str) -> str:
+        """What the UAV's mission file cannot say by itself: the passing order it keeps
+        only when the ground station flies it with the others."""
+        leaders = sorted(w.leader for w in self.order.waits.get(uav_id, []))
+        others = len(self.missions) - 1
+        timing = (
+            f"mvo-gcs: {uav_id}'s mission, timed for {self.speed_m_s:g} m/s with its "
+            f"vehicle's limits, for a start together with {others} other UAV(s)."
+        )
+        if not leaders:
+            return f"{timing} It waits for nobody on the way."
+        return (
+            f"{timing} On the way it must let {', '.join(leaders)} pass first; only the "
+            "ground station keeps that order (it pauses this vehicle until they have "
+            "passed). Flown alone from this file, nothing keeps it: fly it with mvo-gcs, "
+            "or keep the others clear of its path."
+        )
+
+    def visits(self, uav_id: str) -> list[Visit]:
+        """The NAV items after take-off, when the timed flight reaches each."""
+        return timed_visits(self.missions[uav_id], self.timed[uav_id], self.frame)
+
+
+def flight_plan(
+    plan: Plan,
+    scenario: Scenario,
+    autopilots: Mapping[str, Autopilot],
+    *,
+    altitude_m: float = DEFAULT_ALTITUDE_M,
+    finish: Finish = "land",
+    max_speed_m_s: float = DEFAULT_SPEED_M_S,
+    turn_radius_m: float = TURN_RADIUS_M,
+    limits: Mapping[str, CopterLimits] | None = None,
+) -> FlightPlan:
+    """The plan flown with its fastest UAV at `max_speed_m_s`; `limits` are each
+    vehicle's (ArduCopter's defaults where not given). UnsafeSpeed if it cannot be kept.
+    The missions and the order come at once; the timing when first asked for."""
+    if not 0 < max_speed_m_s <= MAX_SPEED_M_S:
+        raise UnsafeSpeed(
+            f"max_speed_m_s must be above 0 and at most {MAX_SPEED_M_S:g} m/s (ArduCopter's "
+            f"WPNAV_SPEED range), got {max_speed_m_s:g}",
+            min(MAX_SPEED_M_S, max(max_speed_m_s, 0.0)) or None,
+        )
+    cell = scenario.grid.cell_size_m
+    radius = {u.id: u.radius * cell for u in scenario.uavs}
+    raw = {u.id: PlannedPath.of(u.id, u.trajectory, cell, radius[u.id]) for u in plan.uavs}
+    legs = {uav: _leg_speeds(p) for uav, p in raw.items()}
+    fastest = max((float(s.max()) for s in legs.values() if len(s)), default=0.0)
+    factor = fastest / max_speed_m_s if fastest > 0 else 1.0
+    paths = {uav: _stretched_path(p, factor) for uav, p in raw.items()}
+    leg_speeds = {uav: s / factor for uav, s in legs.items()}
+    given = dict(limits or {})
+    vehicle_limits = {
+        uav: _at_cruise(given.get(uav, CopterLimits()), leg_speeds[uav], turn_radius_m)
+        for uav in paths
+    }
+    order = PassingOrder.derive(paths.values(), margin_m=2 * stray_m(max_speed_m_s))
+    _refuse_if_unsafe(order, radius, max_speed_m_s)
+    slow_plan, slow_scenario = stretched(plan, scenario, factor)
+    missions = _missions(slow_plan, slow_scenario, autopilots, altitude_m, finish, turn_radius_m)
+    return FlightPlan(
+        max_speed_m_s, factor, slow_plan, slow_scenario, missions, paths, leg_speeds,
+        vehicle_limits, order, altitude_m,
+    )  # fmt: skip
+
+
+def continued(
+    flight: FlightPlan,
+    along: Mapping[str, float],
+    changed: Mapping[str, Trajectory],
+    missions: Mapping[str, Mission],
+) -> FlightPlan:
+    """The rest of a flight after a live replan: each UAV from where it is (`along`,
+    metres along its path), on its new trajectory (`changed`: cells, the flight's clock)
+    or the rest of its old path, and the passing order of those rests."""
+    cell = flight.scenario.grid.cell_size_m
+    paths = {
+        uav: PlannedPath.of(uav, changed[uav].points, cell, path.radius_m)
+        if uav in changed
+        else path.after(along.get(uav, 0.0))
+        for uav, path in flight.paths.items()
+    }
+    leg_speeds = {uav: _leg_speeds(path) for uav, path in paths.items()}
+    order = PassingOrder.derive(paths.values(), margin_m=2 * stray_m(flight.speed_m_s))
+    return dataclasses.replace(
+        flight,
+        missions={**flight.missions, **missions},
+        paths=paths,
+        leg_speeds=leg_speeds,
+        order=order,
+    )
+
+
+def stretched(plan: Plan, scenario: Scenario, factor: float) -> tuple[Plan, Scenario]:
+    """The plan with every time multiplied by `factor`, and the scenario with speeds divided."""
+    uavs = [
+        u.model_copy(update={"trajectory": [[t * factor, x, y] for t, x, y in u.trajectory]})
+        for u in plan.uavs
+    ]
+    specs = [u.model_copy(update={"speed": u.speed / factor}) for u in scenario.uavs]
+    return plan.model_copy(update={"uavs": uavs}), scenario.model_copy(update={"uavs": specs})
+
+
+def timed_visits(mission: Mission, timed: TimedPath, frame: GridFrame) -> list[Visit]:
+    """Each NAV item after take-off with the time the timed flight gets there (no holds:
+    a flight waits where the passing order says, not at a waypoint)."""
+    items = mission.items
+    visits = []
+    for seq in range(takeoff_index(items) + 1, len(items)):
+        item = items[seq]
+        if item.command == Command.NAV_RETURN_TO_LAUNCH:
+            break
+        if item.command not in (Command.NAV_WAYPOINT, Command.NAV_LAND):
+            continue
+        x, y = frame.to_cells(item.lat, item.lon)
+        s = _along(timed.path, np.array([float(x), float(y)]) * frame.cell_size_m)
+        at = timed.time_at(s)
+        lands = item.command == Command.NAV_LAND
+        visits.append(Visit(seq, at, at, item.lat, item.lon, lands))
+        if lands:
+            break
+    return visits
+
+
+def _along(path: PlannedPath, point: Floats) -> float:
+    """The distance along `path` of its point nearest `point` (a mission's waypoint)."""
+    a, d = path.xy[:-1], np.diff(path.xy, axis=0)
+    if len(d) == 0:
+        return 0.0
+    length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-12)
+    f = np.clip(np.einsum("ij,ij->i", point - a, d) / length2, 0.0, 1.0)
+    k = int(np.argmin(np.hypot(*(point - (a + f[:, None] * d)).T)))
+    return float(path.s[k] + f[k] * np.sqrt(length2[k]))
+
+
+def _leg_speeds(path: PlannedPath) -> Floats:
+    """m/s of each leg of a path on the plan's clock."""
+    length = np.hypot(*np.diff(path.xy, axis=0).T)
+    return length / np.maximum(path.arrive[1:] - path.leave[:-1], 1e-9)
+
+
+def _stretched_path(path: PlannedPath, factor: float) -> PlannedPath:
+    return PlannedPath(
+        path.uav_id, path.xy, path.arrive * factor, path.leave * factor, path.radius_m
+    )
+
+
+def _at_cruise(limits: CopterLimits, legs: Floats, radius_m: float) -> CopterLimits:
+    """A vehicle's limits with its cruise set to its fastest leg and its waypoint radius."""
+    cruise = float(legs.max()) if len(legs) else limits.speed_m_s
+    return dataclasses.replace(limits, speed_m_s=cruise, radius_m=radius_m)
+
+
+def _refuse_if_unsafe(order: PassingOrder, radius: Mapping[str, float], speed: float) -> None:
+    """Where the plan flies two UAVs within reach of each other at once, the order keeps
+    only what the plan keeps; that must leave room for both to stray off their paths
+    (more, the faster they fly)."""
+    margin, needed = order.narrowest_margin_m(radius), 2 * stray_m(speed) - 1e-9
+    if margin >= needed:
+        return
+    highest = highest_speed_for_stray(margin / 2)
+    pairs = ", ".join(
+        f"{a} and {b} ({reach - radius[a] - radius[b]:+.2f} m beyond 2R)"
+        for (a, b), reach in sorted(order.reach_m.items())
+        if reach - radius[a] - radius[b] < needed
+    )
+    advice = (
+        f"the highest speed it can keep safe is {highest:.1f} m/s"
+        if highest is not None
+        else "no speed is safe: plan again with larger radii"
+    )
+    raise UnsafeSpeed(
+        f"at {speed:g} m/s a vehicle may stray {stray_m(speed):.2f} m off its path, but the "
+        f"plan flies {pairs} side by side with less room than twice that; {advice}",
+        highest,
+    )
+
+
+def _missions(
+    plan: Plan,
+    scenario: Scenario,
+    autopilots: Mapping[str, Autopilot],
+    altitude_m: float,
+    finish: Finish,
+    turn_radius_m: float,
+) -> dict[str, Mission]:
+    missions: dict[str, Mission] = {}
+    for autopilot in set(autopilots.values()):
+        built = build_missions(
+            plan, scenario, autopilot, altitude_m=altitude_m, finish=finish,
+            acceptance_radius_m=turn_radius_m, holds=False,
+        )  # fmt: skip
+        missions |= {uav: m for uav, m in built.items() if autopilots[uav] == autopilot}
+    return missions
+
+
+def plan_trajectories(flight: FlightPlan) -> dict[str, Trajectory]:
+    """The timed flight in the plan's terms (cells), for the exact check."""
+    cell = flight.scenario.grid.cell_size_m
+    return {uav: t.trajectory(cell) for uav, t in flight.timed.items()}

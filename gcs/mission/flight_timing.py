@@ -1,0 +1,181 @@
+"""A plan as copters fly it: every UAV along its path with its vehicle's limits, waiting
+where the passing order says, on one clock from the common start.
+
+The plan's own times assume instant speed changes. Flown, each vehicle speeds up and
+slows down along jerk-limited curves, slows for its corners and stops at its end
+(`motion`), and where the passing order makes it wait for another (`passing_order`) it
+is stopped by the same rule the flight uses (`StoppingRule`). Stepping all of them
+together gives the trajectories the fleet will fly when nothing goes wrong: their
+duration is the flight's (the benchmark's yardstick), their arrival at each waypoint the
+schedule the console shows, and the exact safety check judges them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from gcs.mission.geodesy import Floats
+from gcs.mission.motion import (
+    CopterLimits,
+    Gate,
+    StoppingRule,
+    entry_speed_for,
+    speed_profile,
+    turn_angles,
+)
+from gcs.mission.passing_order import PassingOrder, PlannedPath
+from planner.trajectory import Trajectory
+
+STEP_S = 0.05
+SAMPLE_S = 0.25
+"""Seconds between the points of a timed trajectory: a straight line between two of
+them is off the curve by at most accel·SAMPLE_S²/8, under 2 cm at 2.5 m/s²."""
+
+
+def _limit(
+    order: PassingOrder | None, uav: str, progress: Mapping[str, float]
+) -> tuple[float, str | None]:
+    if order is None:
+        return np.inf, None
+    limit = order.limit(uav, progress)
+    return limit.at_m, limit.leader
+
+
+class FlightStuck(RuntimeError):
+    """The simulated flight stopped moving before every vehicle arrived (a bug: the
+    passing order cannot wait in a circle)."""
+
+
+@dataclass(frozen=True)
+class TimedPath:
+    """Where one vehicle is along its path, second by second, flown as a copter flies,
+    until it is down at its end."""
+
+    path: PlannedPath
+    t: Floats  # seconds from the common start
+    s: Floats  # metres along the path
+    arrival_s: float  # over its end; it is down at t[-1]
+
+    def time_at(self, s: float) -> float:
+        """When the vehicle first gets `s` metres along its path."""
+        k = int(np.searchsorted(self.s, s - 1e-9, side="left"))
+        return float(self.t[min(k, len(self.t) - 1)])
+
+    def trajectory(self, cell_m: float) -> Trajectory:
+        """In the plan's terms: `[t, x, y]` in cells."""
+        along = self.path.s
+        x = np.interp(self.s, along, self.path.xy[:, 0]) / cell_m
+        y = np.interp(self.s, along, self.path.xy[:, 1]) / cell_m
+        return Trajectory(np.column_stack([self.t, x, y]))
+
+
+@dataclass
+class _Vehicle:
+    """One vehicle of the simulated fleet."""
+
+    path: PlannedPath
+    limits: CopterLimits
+    vertex_s: Floats
+    vertex_speed: Floats  # the highest speed at each vertex (corners, the end)
+    leg_speed: Floats  # m/s of each leg
+    s: float = 0.0
+    v: float = 0.0
+    a: float = 0.0
+    gate: Gate = Gate.GO
+    done: bool = False
+
+    @classmethod
+    def of(cls, path: PlannedPath, leg_speed: Floats, limits: CopterLimits) -> _Vehicle:
+        s = path.s
+        turns = turn_angles(path.xy) if len(s) > 2 else np.zeros(0)
+        knots, bound = speed_profile(s, leg_speed, turns, limits)
+        return cls(path, limits, knots, bound, leg_speed)
+
+    def cap(self, rule: StoppingRule) -> float:
+        """The speed the vehicle may have here: its leg's, what the next vertex allows,
+        and its gate's."""
+        if self.gate == Gate.STOP:
+            return 0.0
+        k = min(int(np.searchsorted(self.vertex_s, self.s, side="right")), len(self.vertex_s) - 1)
+        leg = self.leg_speed[max(0, k - 1)] if len(self.leg_speed) else 0.0
+        if self.gate == Gate.CREEP:
+            leg = min(leg, rule.creep_m_s)
+        ahead = entry_speed_for(self.vertex_s[k] - self.s, self.vertex_speed[k], self.limits)
+        return min(leg, ahead)
+
+    def step(self, target: float, dt: float) -> None:
+        """Chase `target` speed: acceleration from a square-root shaper, ramped at the jerk
+        limit, as ArduPilot's shape_vel_accel does (a paused mission: at the position
+        controller's jerk)."""
+        limits = self.limits
+        jerk = limits.stop_jerk_m_s3 if self.gate == Gate.STOP else limits.jerk_m_s3
+        error = target - self.v
+        wanted = np.sign(error) * min(np.sqrt(2 * jerk * abs(error)), limits.accel_m_s2)
+        change = jerk * dt
+        self.a += float(np.clip(wanted - self.a, -change, change))
+        self.v = max(0.0, self.v + self.a * dt)
+        if self.v == 0.0 and self.a < 0:
+            self.a = 0.0
+        self.s = min(self.path.length, self.s + self.v * dt)
+        if self.path.length - self.s < 1e-3 and self.v < 0.05:
+            self.s, self.v, self.a, self.done = self.path.length, 0.0, 0.0, True
+
+
+def fly(
+    paths: Mapping[str, PlannedPath],
+    leg_speeds: Mapping[str, Floats],
+    limits: Mapping[str, CopterLimits],
+    order: PassingOrder | None = None,
+    rule: StoppingRule | None = None,
+    altitude_m: float = 20.0,
+    max_s: float = 7200.0,
+) -> dict[str, TimedPath]:
+    """Every vehicle from the common start to its end, waiting where `order` says. A
+    vehicle at its end is in the others' way until it has landed there."""
+    rule = rule or StoppingRule()
+    fleet = {uav: _Vehicle.of(p, leg_speeds[uav], limits[uav]) for uav, p in paths.items()}
+    t, last_move = 0.0, 0.0
+    every = max(1, round(SAMPLE_S / STEP_S))
+    rows: dict[str, list[tuple[float, float]]] = {uav: [(0.0, 0.0)] for uav in fleet}
+    steps = 0
+    down_at = {uav: np.inf for uav in fleet}
+    while not all(v.done for v in fleet.values()):
+        progress = {uav: np.inf if t >= down_at[uav] else v.s for uav, v in fleet.items()}
+        limits_now = {uav: _limit(order, uav, progress) for uav in fleet}
+        waited_on = {leader for _, leader in limits_now.values() if leader is not None}
+        for uav, vehicle in fleet.items():
+            if vehicle.done:
+                continue
+            at, _ = limits_now[uav]
+            vehicle.gate = rule.decide(
+                vehicle.gate,
+                at - vehicle.s,
+                vehicle.v,
+                vehicle.a,
+                vehicle.limits,
+                uav in waited_on,
+            )
+            before = vehicle.s
+            vehicle.step(vehicle.cap(rule), STEP_S)
+            if vehicle.s > before + 1e-9:
+                last_move = t
+            if vehicle.done:
+                down_at[uav] = t + vehicle.limits.landing_time(altitude_m)
+        t += STEP_S
+        steps += 1
+        for uav, vehicle in fleet.items():
+            if rows[uav][-1][1] < vehicle.path.length and (steps % every == 0 or vehicle.done):
+                rows[uav].append((t, vehicle.s))
+        if t - last_move > 600.0 or t > max_s:
+            waiting = sorted(uav for uav, v in fleet.items() if not v.done)
+            raise FlightStuck(f"{waiting} stopped moving at {t:.0f} s of the simulated flight")
+    timed = {}
+    for uav, vehicle in fleet.items():  # over its end until it is down
+        arrival = rows[uav][-1][0]
+        rows[uav].append((down_at[uav], vehicle.path.length))
+        t_s, s_m = np.array(rows[uav]).T
+        timed[uav] = TimedPath(paths[uav], t_s, s_m, arrival)
+    return timed

@@ -1,0 +1,222 @@
+"""How a copter moves along its path: its limits, how far it needs to stop, how fast it
+takes a corner, and the speed it can have at every point of a path.
+
+ArduCopter flies a mission's legs along jerk-limited S-curves (AC_WPNav, SCurve): its
+speed rises and falls at WPNAV_ACCEL with the acceleration itself ramping at WPNAV_JERK,
+it blends a corner into the next leg without stopping, slowing so that the bend stays
+within the waypoint radius at no more than the corner acceleration (WPNAV_ACCEL_C), and a
+paused mission slows along the track the same jerk-limited way. The plan knows none of
+this: its legs change speed at once. This module is the ground station's model of that
+motion, used to time a plan as it will be flown (`flight_timing`) and to know where a
+vehicle can still stop (`gcs.fleet.gatekeeper`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+
+from gcs.mission.geodesy import Floats
+
+DEFAULT_SPEED_M_S = 5.0
+"""The flight speed unless the operator asks for another: a real cruise speed."""
+
+
+BRAKE_REACH_S = 2.0
+"""A brake reaches about this many seconds of the speed it starts from (SITL: 8.7 m from
+5 m/s, 20.1 m from 10 m/s)."""
+SPARE = 1.1
+"""What the stopping distances keep in hand beyond what ArduCopter SITL measured."""
+
+
+@dataclass(frozen=True)
+class CopterLimits:
+    """Navigation limits in SI units, as ArduCopter's parameters give them."""
+
+    speed_m_s: float = DEFAULT_SPEED_M_S  # WPNAV_SPEED, or the mission's DO_CHANGE_SPEED
+    accel_m_s2: float = 2.5  # WPNAV_ACCEL
+    jerk_m_s3: float = 1.0  # WPNAV_JERK: how the legs' S-curves change speed
+    stop_jerk_m_s3: float = 5.0  # PSC_JERK_NE: how a paused mission slows to a stop
+    corner_accel_m_s2: float = 5.0  # WPNAV_ACCEL_C (ArduCopter: 2 x WPNAV_ACCEL when 0)
+    radius_m: float = 0.5  # WP_RADIUS_M: how far a blended corner may pass from its point
+    descent_m_s: float = 1.5  # WPNAV_SPEED_DN: how fast LAND comes down from high up
+    land_m_s: float = 0.5  # LAND_SPEED: the last part of a landing
+    land_slow_below_m: float = 10.0  # LAND_ALT_LOW: where that last part begins
+
+    def __post_init__(self) -> None:
+        for name in (
+            "speed_m_s", "accel_m_s2", "jerk_m_s3", "stop_jerk_m_s3", "corner_accel_m_s2",
+            "radius_m",
+        ):  # fmt: skip
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+
+    def change_time(self, delta_v: float, jerk: float | None = None) -> float:
+        """Seconds a jerk-limited change of speed by `delta_v` takes, from and to no
+        acceleration (a triangle of acceleration below accel²/jerk, a trapezium above)."""
+        dv, accel, jerk = abs(delta_v), self.accel_m_s2, jerk or self.jerk_m_s3
+        if dv <= accel * accel / jerk:
+            return 2.0 * math.sqrt(dv / jerk)
+        return dv / accel + accel / jerk
+
+    def change_distance(self, v_from: float, v_to: float, jerk: float | None = None) -> float:
+        """Metres covered meanwhile: the profile is antisymmetric, so its mean speed is
+        the mean of its ends."""
+        return 0.5 * (v_from + v_to) * self.change_time(v_to - v_from, jerk)
+
+    def stopping_distance(self, speed: float, accel: float = 0.0, paused: bool = False) -> float:
+        """Metres a vehicle told to stop covers from `speed`, while speeding up at `accel`
+        (which must first ramp down to nothing: the speed still grows meanwhile).
+
+        A paused mission slows along its track at WPNAV's acceleration ramped with the
+        position controller's jerk (AC_WPNav); where ArduCopter will not pause, BRAKE
+        stops it, its speed decaying with a time constant of about 1.5 s (ModeBrake). On
+        SITL a pause stopped within 6.7 m from 5 m/s and 23.2 m from 10 m/s, a brake
+        within 8.7 m and 20.1 m: the further of the two, with a tenth to spare; `paused`
+        only, for a vehicle creeping mid-leg (where a pause is never refused)."""
+        accel, jerk = max(0.0, accel), self.stop_jerk_m_s3
+        ramp = accel / jerk
+        before = speed * ramp + accel * ramp * ramp / 2 - jerk * ramp**3 / 6
+        pause = before + self.change_distance(speed + accel * ramp / 2, 0.0, jerk)
+        brake = 0.0 if paused else BRAKE_REACH_S * (speed + accel * ramp / 2)
+        return SPARE * max(pause, brake)
+
+    def landing_time(self, altitude_m: float) -> float:
+        """Seconds from over the landing point to the ground, as ArduCopter's LAND does
+        (fast down to LAND_ALT_LOW, slow below); the vehicle is in the way until then."""
+        slow = min(altitude_m, self.land_slow_below_m)
+        return (altitude_m - slow) / self.descent_m_s + slow / self.land_m_s
+
+    def corner_speed(self, turn_rad: float) -> float:
+        """The speed through a corner turning by `turn_rad` (0: straight on): a bend that
+        stays within `radius_m` of the corner, taken at the corner acceleration."""
+        half = 0.5 * min(abs(turn_rad), math.pi - 1e-6)
+        if half < 1e-6:
+            return math.inf
+        bend = self.radius_m * math.cos(half) / (1.0 - math.cos(half))
+        return math.sqrt(self.corner_accel_m_s2 * bend)
+
+
+STRAY_AT_REST_M = 0.1
+STRAY_PER_M_S = 0.055
+"""How far a copter may be off its path: its position error at rest, growing with speed.
+ArduCopter SITL (bench/results/kinematics_vs_sitl.txt), waypoint radius 0.5 m: at most
+0.34 m off the polyline through corners at 5 m/s, 0.66 m at 10 m/s (it trails its
+target through a sharp turn); 0.04 m on straight legs."""
+
+
+def stray_m(speed_m_s: float) -> float:
+    """How far off its path a copter flying at `speed_m_s` may be."""
+    return STRAY_AT_REST_M + STRAY_PER_M_S * speed_m_s
+
+
+def highest_speed_for_stray(allowed_m: float) -> float | None:
+    """The highest speed at which a copter strays no more than `allowed_m`; None if none."""
+    if allowed_m < STRAY_AT_REST_M:
+        return None
+    return (allowed_m - STRAY_AT_REST_M) / STRAY_PER_M_S
+
+
+def turn_angles(xy: Floats) -> Floats:
+    """The turn at each interior vertex of a polyline, radians in [0, pi]."""
+    legs = np.diff(xy, axis=0)
+    heading = np.arctan2(legs[:, 1], legs[:, 0])
+    turn = np.abs(np.diff(heading))
+    return np.minimum(turn, 2 * np.pi - turn)
+
+
+def speed_profile(
+    s_vertices: Floats, leg_speeds: Floats, turns: Floats, limits: CopterLimits
+) -> tuple[Floats, Floats]:
+    """The highest speed at each vertex (entry) that the copter can have there and still
+    make every later corner and stop at the end: (s, v) knots, v = 0 at both ends.
+
+    A backward pass from the end: the speed at a vertex is bounded by its corner, by the
+    legs on either side, and by what the slow-down to the next vertex's bound allows in
+    the leg between (jerk-limited)."""
+    n = len(s_vertices)
+    bound = np.zeros(n)
+    if n < 2:
+        return s_vertices.copy(), bound
+    corners = np.array([limits.corner_speed(a) for a in turns])
+    bound[1:-1] = np.minimum(np.minimum(corners, leg_speeds[:-1]), leg_speeds[1:])
+    for k in range(n - 2, 0, -1):
+        room = s_vertices[k + 1] - s_vertices[k]
+        bound[k] = min(bound[k], entry_speed_for(room, bound[k + 1], limits))
+    return s_vertices.copy(), bound
+
+
+def entry_speed_for(distance: float, exit_speed: float, limits: CopterLimits) -> float:
+    """The highest speed from which the copter slows to `exit_speed` within `distance`.
+
+    Solves change_distance(v, exit) = distance for v on the trapezium branch of the
+    profile, which takes at least as long as the triangle: the answer errs low (safe)."""
+    if distance <= 0:
+        return exit_speed
+    a, ramp = limits.accel_m_s2, limits.accel_m_s2**2 / limits.jerk_m_s3
+    # 2a·d = v² - e² + (v + e)·ramp, so v² + ramp·v - (e² - e·ramp + 2a·d) = 0
+    c = exit_speed**2 - exit_speed * ramp + 2 * a * distance
+    return max(exit_speed, 0.5 * (-ramp + math.sqrt(ramp * ramp + 4 * c)))
+
+
+class Gate(StrEnum):
+    """What a vehicle does about the point it may not pass yet."""
+
+    GO = "go"  # flies on at its leg's speed
+    STOP = "stop"  # paused: waits for the vehicle ahead to get out of the way
+    CREEP = "creep"  # edges up to the point at `creep_m_s`: another waits for it to pass
+
+
+@dataclass(frozen=True)
+class StoppingRule:
+    """When a vehicle flying toward a point it may not pass yet must be stopped, when it
+    goes again, and when it edges closer: the same rule times a plan and flies it.
+
+    It is stopped once the point is no further than its stopping distance at its speed,
+    plus what it covers while the command reaches it (`reaction_s`: the position's age
+    and the command's way), plus `buffer_m`. It goes again once it could reach its cruise
+    speed and still stop short, so that it is not stopped again moments later (no
+    command chatter on the radio link). A stopped vehicle that another one waits for (to
+    pass a point between it and its own limit) creeps closer at `creep_m_s`: stopping
+    short must not make two vehicles wait for each other."""
+
+    reaction_s: float = 0.6
+    buffer_m: float = 1.0
+    creep_m_s: float = 0.5
+    creep_buffer_m: float = 0.2
+
+    def decide(
+        self,
+        gate: Gate,
+        gap_m: float,
+        speed: float,
+        accel: float,
+        limits: CopterLimits,
+        waited_on: bool,
+    ) -> Gate:
+        """The next gate state, `gap_m` short of the point, at `speed` and `accel`."""
+        if gap_m > self.go_room_m(limits):
+            return Gate.GO
+        if gate == Gate.GO:
+            return Gate.STOP if gap_m <= self.needed_m(speed, accel, limits) else Gate.GO
+        if gate == Gate.CREEP:
+            needed = self.needed_m(speed, accel, limits, creeping=True)
+            return Gate.STOP if gap_m <= needed else gate
+        creep = self.creep_m_s
+        room = self.needed_m(creep, 0.0, limits, creeping=True) + limits.change_distance(0.0, creep)
+        return Gate.CREEP if waited_on and speed <= creep and gap_m > room else Gate.STOP
+
+    def go_room_m(self, limits: CopterLimits) -> float:
+        """Room to speed up to cruise from a stop and still stop short."""
+        cruise = limits.speed_m_s
+        return limits.change_distance(0.0, cruise) + self.needed_m(cruise, 0.0, limits)
+
+    def needed_m(
+        self, speed: float, accel: float, limits: CopterLimits, creeping: bool = False
+    ) -> float:
+        buffer = self.creep_buffer_m if creeping else self.buffer_m
+        stopping = limits.stopping_distance(speed, accel, paused=creeping)
+        return stopping + speed * self.reaction_s + buffer

@@ -1,0 +1,234 @@
+"""Who passes first where two UAVs' paths come close: the plan's passing order.
+
+A plan is safe because wherever two paths come within reach of each other, one UAV has
+left before the other arrives. Vehicles in the air drift off the plan's clock (they
+accelerate, round corners, meet wind, take off late, are held), so a flight keeps the
+plan's *order* instead of its clock, as robots executing multi-agent plans do (Hönig et
+al., RA-L 2019: the action dependency graph). Each path is sampled every `step_m`; for
+two samples of two UAVs closer than `reach_m + step_m`, the plan says which UAV was
+there first; the other one may not come within `step_m` of its sample before the first
+has gone `step_m` beyond its own. Then no two vehicles are ever closer than `reach_m`,
+whatever their speeds, as long as each keeps behind its limit (`limit`).
+
+Every such wait points forward in the plan's time (the first UAV leaves before the
+second arrives), and each UAV moves forward along its path, so the waits cannot form a
+cycle: no one ever waits, directly or through others, for itself. Where the plan itself
+flies two UAVs within reach of each other at the same time, there is no order to keep:
+that pair's reach is narrowed to what the plan keeps (`reach_m` per pair), and the
+flight says so (`narrowest_margin_m`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from gcs.mission.geodesy import Floats
+
+DEFAULT_STEP_M = 0.1
+MOVE_EPS_M = 1e-6
+
+
+@dataclass(frozen=True)
+class PlannedPath:
+    """One UAV's path in metres (east, north of the grid's origin) with the plan's clock:
+    it arrives at vertex k at `arrive[k]` and leaves it at `leave[k]` (later where it
+    hovers), moving at a constant speed between vertices."""
+
+    uav_id: str
+    xy: Floats  # (n, 2)
+    arrive: Floats  # (n,)
+    leave: Floats  # (n,)
+    radius_m: float
+
+    @classmethod
+    def of(
+        cls, uav_id: str, trajectory: Iterable[Iterable[float]], cell_m: float, radius_m: float
+    ) -> PlannedPath:
+        """From a plan's `[t, x, y]` rows in cells; repeated places become hovers."""
+        points = np.asarray(list(trajectory), dtype=float).reshape(-1, 3)
+        xy = points[:, 1:] * cell_m
+        moved = np.hypot(*np.diff(xy, axis=0).T) > MOVE_EPS_M
+        first = np.flatnonzero(np.concatenate([[True], moved]))
+        last = np.concatenate([first[1:] - 1, [len(points) - 1]])
+        return cls(uav_id, xy[first], points[first, 0], points[last, 0], radius_m)
+
+    @property
+    def s(self) -> Floats:
+        """Distance along the path at each vertex, metres."""
+        return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.xy, axis=0).T))])
+
+    @property
+    def length(self) -> float:
+        return float(self.s[-1])
+
+    def after(self, s: float) -> PlannedPath:
+        """What is left of the path from `s` metres along it, on the same clock."""
+        along = self.s
+        s = float(np.clip(s, 0.0, along[-1]))
+        k = int(np.searchsorted(along, s, side="right"))
+        t = float(np.interp(s, along, self.leave)) if k < len(along) else float(self.leave[-1])
+        if 0 < k < len(along):  # between vertices k - 1 and k: on the clock of that leg
+            f = (s - along[k - 1]) / max(along[k] - along[k - 1], 1e-12)
+            t = self.leave[k - 1] + f * (self.arrive[k] - self.leave[k - 1])
+        here = np.array([self.position(s)])
+        rest = slice(k, None)
+        return PlannedPath(
+            self.uav_id,
+            np.vstack([here, self.xy[rest]]),
+            np.concatenate([[t], self.arrive[rest]]),
+            np.concatenate([[t], self.leave[rest]]),
+            self.radius_m,
+        )
+
+    def position(self, s: float) -> tuple[float, float]:
+        along = self.s
+        return float(np.interp(s, along, self.xy[:, 0])), float(np.interp(s, along, self.xy[:, 1]))
+
+    def samples(self, step_m: float) -> tuple[Floats, Floats, Floats, Floats]:
+        """Points every `step_m` or less, and every vertex: (s, xy, when the UAV comes
+        within `step_m` of the point, when it is last within `step_m` of it)."""
+        along = self.s
+        s_parts, t_in, t_out = [np.array([0.0])], [self.arrive[:1]], [self.leave[:1]]
+        for k in range(len(along) - 1):
+            length = along[k + 1] - along[k]
+            count = max(1, int(np.ceil(length / step_m)))
+            f = np.arange(1, count + 1) / count
+            s_parts.append(along[k] + f * length)
+            t = self.leave[k] + f * (self.arrive[k + 1] - self.leave[k])
+            t_in.append(t)
+            t_out.append(np.concatenate([t[:-1], self.leave[k + 1 : k + 2]]))
+        s = np.concatenate(s_parts)
+        first, last = np.concatenate(t_in), np.concatenate(t_out)
+        before = np.maximum(np.searchsorted(s, s - step_m, side="right") - 1, 0)
+        after = np.minimum(np.searchsorted(s, s + step_m, side="left"), len(s) - 1)
+        xy = np.column_stack(
+            [np.interp(s, along, self.xy[:, 0]), np.interp(s, along, self.xy[:, 1])]
+        )
+        return s, xy, first[before], last[after]
+
+
+@dataclass(frozen=True)
+class Waits:
+    """What one UAV (the follower) waits for from one other (the leader): it may reach
+    `at[k]` only once the leader has passed `after[k]`, both in metres along their paths.
+
+    Sorted by `at`; `needed` is the running maximum of `after`, so the first `at` still
+    waiting for the leader is one binary search away. `plan_times` are the plan's times
+    of each wait's two ends (leader leaves, follower arrives): the leader's is earlier."""
+
+    leader: str
+    at: Floats
+    after: Floats
+    plan_times: Floats  # (k, 2): leader leaves, follower arrives
+    needed: Floats = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "needed", np.maximum.accumulate(self.after))
+
+    def limit(self, leader_at: float) -> float:
+        """How far along its path the follower may go while the leader is at `leader_at`."""
+        k = int(np.searchsorted(self.needed, leader_at, side="left"))
+        return float(self.at[k]) if k < len(self.at) else np.inf
+
+
+@dataclass(frozen=True)
+class Limit:
+    """How far a vehicle may go now, and who stops it there (None: nobody)."""
+
+    at_m: float
+    leader: str | None
+
+
+@dataclass
+class PassingOrder:
+    """Every UAV's waits, by follower, and each pair's reach (their protected distance)."""
+
+    waits: dict[str, list[Waits]]
+    reach_m: dict[tuple[str, str], float]
+    step_m: float
+
+    @classmethod
+    def derive(
+        cls,
+        paths: Iterable[PlannedPath],
+        margin_m: float,
+        step_m: float = DEFAULT_STEP_M,
+    ) -> PassingOrder:
+        """The order of the plan's close encounters, keeping every pair `2R + margin_m`
+        apart where the plan leaves room for it (and what the plan keeps where not)."""
+        sampled = {p.uav_id: (p, p.samples(step_m)) for p in paths}
+        waits: dict[str, list[Waits]] = {uav: [] for uav in sampled}
+        reach: dict[tuple[str, str], float] = {}
+        for a, b in itertools.combinations(sorted(sampled), 2):
+            (pa, samples_a), (pb, samples_b) = sampled[a], sampled[b]
+            wanted = pa.radius_m + pb.radius_m + margin_m
+            reach[(a, b)], found = _pair_waits(samples_a, samples_b, wanted, step_m)
+            for follower, leader, wait in ((b, a, found[0]), (a, b, found[1])):
+                if wait is not None:
+                    waits[follower].append(Waits(leader, *wait))
+        return cls(waits, reach, step_m)
+
+    def limit(self, follower: str, progress: Mapping[str, float]) -> Limit:
+        """How far `follower` may go while the others are at `progress` (metres along
+        their paths; a UAV not in `progress` is taken as not yet started)."""
+        best = Limit(np.inf, None)
+        for wait in self.waits.get(follower, ()):
+            at = wait.limit(progress.get(wait.leader, 0.0))
+            if at < best.at_m:
+                best = Limit(at, wait.leader)
+        return best
+
+    def narrowest_margin_m(self, radii: Mapping[str, float]) -> float:
+        """The smallest reach beyond 2R over all pairs: what the order keeps in hand."""
+        return min((r - radii[a] - radii[b] for (a, b), r in self.reach_m.items()), default=np.inf)
+
+    def release(self, leader: str) -> None:
+        """`leader` is out of everyone's way for good (down on the ground)."""
+        for follower, waits in self.waits.items():
+            self.waits[follower] = [w for w in waits if w.leader != leader]
+
+
+Samples = tuple[Floats, Floats, Floats, Floats]
+Found = tuple[Floats, Floats, Floats] | None
+
+
+def _pair_waits(
+    a: Samples, b: Samples, wanted_m: float, step_m: float
+) -> tuple[float, tuple[Found, Found]]:
+    """The reach kept between two sampled paths, and the waits of b for a and of a for b.
+
+    A wait keeps the follower `step_m` short of its sample until the leader is `step_m`
+    beyond its own: positions between samples are then covered too."""
+    s_a, xy_a, in_a, out_a = a
+    s_b, xy_b, in_b, out_b = b
+    close = cKDTree(xy_a).sparse_distance_matrix(
+        cKDTree(xy_b), wanted_m + step_m, output_type="ndarray"
+    )
+    i, j, d = close["i"], close["j"], close["v"]
+    a_first = out_a[i] <= in_b[j]
+    b_first = ~a_first & (out_b[j] <= in_a[i])
+    together = ~(a_first | b_first)
+    reach = wanted_m
+    if together.any():  # the plan flies them this close at once: keep what it keeps
+        reach = float(d[together].min()) - step_m
+        keep = d < reach + step_m
+        i, j, a_first, b_first = i[keep], j[keep], a_first[keep], b_first[keep]
+    b_waits = _waits(s_b[j[a_first]], s_a[i[a_first]], out_a[i[a_first]], in_b[j[a_first]], step_m)
+    a_waits = _waits(s_a[i[b_first]], s_b[j[b_first]], out_b[j[b_first]], in_a[i[b_first]], step_m)
+    return reach, (b_waits, a_waits)
+
+
+def _waits(at: Floats, after: Floats, leaves: Floats, arrives: Floats, step_m: float) -> Found:
+    if len(at) == 0:
+        return None
+    order = np.lexsort((after, at))
+    return (
+        at[order] - step_m,
+        after[order] + step_m,
+        np.column_stack([leaves[order], arrives[order]]),
+    )

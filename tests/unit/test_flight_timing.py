@@ -1,0 +1,135 @@
+"""A plan as copters fly it: the ground station's motion model, the stopping rule, the
+timed flight and the refusal of a speed it cannot keep."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gcs.mavlink.mission_item import Autopilot
+from gcs.mission.flight_plan import UnsafeSpeed, flight_plan
+from gcs.mission.flight_timing import _Vehicle, fly
+from gcs.mission.motion import CopterLimits, Gate, StoppingRule
+from gcs.mission.passing_order import PassingOrder, PlannedPath
+from planner.cases import load_case
+from planner.pipeline import PlannerSettings, plan
+from tests.unit.test_passing_order import planned
+
+LIMITS = CopterLimits(speed_m_s=10.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(0.5, 15.0), st.floats(0.0, 2.5))
+def test_a_paused_vehicle_stops_within_the_stopping_distance_it_is_given(
+    speed: float, accel: float
+) -> None:
+    """The model's jerk-limited stop from any speed and acceleration lands within the
+    distance `stopping_distance` promises (what the gatekeeper leaves room for)."""
+    path = PlannedPath("a", np.array([[0.0, 0.0], [1000.0, 0.0]]), np.zeros(2), np.zeros(2), 3.0)
+    vehicle = _Vehicle.of(path, np.array([15.0]), CopterLimits(speed_m_s=15.0))
+    vehicle.v, vehicle.a, vehicle.gate = speed, accel, Gate.STOP
+    start = vehicle.s
+    for _ in range(2000):
+        vehicle.step(0.0, 0.005)
+    assert vehicle.v == 0.0
+    assert vehicle.s - start <= LIMITS.stopping_distance(speed, accel) * 1.02 + 0.05
+
+
+def test_sharper_corners_are_taken_slower_and_a_straight_line_not_at_all() -> None:
+    speeds = [LIMITS.corner_speed(math.radians(deg)) for deg in (0, 15, 45, 90, 135)]
+    assert speeds[0] == math.inf
+    assert all(a > b for a, b in itertools.pairwise(speeds))
+
+
+def test_the_stopping_rule_stops_in_time_goes_only_with_room_and_creeps_when_waited_for() -> None:
+    rule = StoppingRule()
+    needed = rule.needed_m(10.0, 0.0, LIMITS)
+    assert rule.decide(Gate.GO, needed + 0.1, 10.0, 0.0, LIMITS, False) == Gate.GO
+    assert rule.decide(Gate.GO, needed - 0.1, 10.0, 0.0, LIMITS, False) == Gate.STOP
+    assert rule.decide(Gate.GO, needed + 0.1, 10.0, 2.5, LIMITS, False) == Gate.STOP  # speeding up
+    assert rule.decide(Gate.STOP, needed + 1.0, 0.0, 0.0, LIMITS, False) == Gate.STOP  # no chatter
+    assert rule.decide(Gate.STOP, rule.go_room_m(LIMITS) + 0.1, 0.0, 0.0, LIMITS, False) == Gate.GO
+    assert rule.decide(Gate.STOP, 3.0, 0.0, 0.0, LIMITS, True) == Gate.CREEP
+    assert rule.decide(Gate.STOP, 3.0, 4.0, 0.0, LIMITS, True) == Gate.STOP  # still slowing
+    assert rule.decide(Gate.CREEP, 0.3, 0.5, 0.0, LIMITS, True) == Gate.STOP
+
+
+@settings(max_examples=6, deadline=None)
+@given(
+    st.tuples(st.sampled_from(["crossing", "random"]), st.integers(0, 5)),
+    st.sampled_from([5.0, 10.0]),
+)
+def test_the_timed_flight_keeps_the_order_and_every_vehicle_gets_home(
+    family_seed: tuple[str, int], speed: float
+) -> None:
+    """Copters that accelerate, round corners and stop where the order says: nobody is
+    stuck, and no two come closer than their reach (the order's distance) less a step."""
+    _, paths = planned(*family_seed)
+    legs = {uav: _legs(p) for uav, p in paths.items()}
+    fastest = max(float(s.max()) for s in legs.values())
+    k = fastest / speed
+    paths = {
+        u: PlannedPath(u, p.xy, p.arrive * k, p.leave * k, p.radius_m) for u, p in paths.items()
+    }
+    legs = {u: s / k for u, s in legs.items()}
+    order = PassingOrder.derive(paths.values(), margin_m=0.6)
+    timed = fly(paths, legs, {u: CopterLimits(speed_m_s=speed) for u in paths}, order)
+    for a in timed:
+        for b in timed:
+            if a >= b:
+                continue
+            ta, tb = timed[a], timed[b]
+            t = np.union1d(ta.t, tb.t)
+            t = t[t <= min(ta.t[-1], tb.t[-1])]
+            pa = np.column_stack(
+                [np.interp(np.interp(t, ta.t, ta.s), ta.path.s, ta.path.xy[:, i]) for i in (0, 1)]
+            )
+            pb = np.column_stack(
+                [np.interp(np.interp(t, tb.t, tb.s), tb.path.s, tb.path.xy[:, i]) for i in (0, 1)]
+            )
+            gap = np.hypot(*(pa - pb).T).min()
+            assert gap >= order.reach_m[(a, b)] - 2 * order.step_m - 0.05, (a, b, gap)
+
+
+def test_two_vehicles_stopped_short_of_each_others_limits_creep_out_of_the_deadlock() -> None:
+    """Case I planned without clearance, at 5 m/s: uav1 stopped 6 cm short of where uav2
+    needs it and uav2 55 cm short of where uav1 needs it, both 1.45 m short of their own
+    limits. A creep's room once counted a brake's stopping distance (1.1 m at 0.5 m/s),
+    and neither moved again; a creep is a paused mission's, which stops within 0.2 m."""
+    scenario = load_case("case-1")
+    result = plan(scenario, PlannerSettings(time_budget_s=None))
+    autopilots = {u.id: Autopilot.ARDUPILOT for u in scenario.uavs}
+    flight = flight_plan(result, scenario, autopilots, max_speed_m_s=5.0)
+    assert flight.duration_s < 60.0
+    assert flight.min_separation_m() >= 6.0
+
+
+def test_a_speed_that_cannot_be_kept_is_refused_naming_the_highest_safe_one() -> None:
+    scenario = load_case("case-6")
+    result = plan(scenario, PlannerSettings(seed=1))
+    autopilots = {u.id: Autopilot.ARDUPILOT for u in scenario.uavs}
+    with pytest.raises(UnsafeSpeed) as too_fast:
+        flight_plan(result, scenario, autopilots, max_speed_m_s=25.0)
+    assert too_fast.value.highest_safe_m_s == 20.0
+    squeezed = result.model_copy(  # uav2 flown alongside uav1, 6.2 m away (2R is 6 m)
+        update={"uavs": [result.uavs[0], _beside(result.uavs[0], result.uavs[1], 6.2 / 10.0)]}
+    )
+    with pytest.raises(UnsafeSpeed) as beside:
+        flight_plan(squeezed, scenario, autopilots, max_speed_m_s=10.0)
+    assert beside.value.highest_safe_m_s is None
+    assert "uav1 and uav2" in str(beside.value)
+
+
+def _beside(leader, follower, offset_cells: float):  # type: ignore[no-untyped-def]
+    rows = [[t, x, y + offset_cells] for t, x, y in leader.trajectory]
+    return follower.model_copy(update={"trajectory": rows})
+
+
+def _legs(path: PlannedPath) -> np.ndarray:
+    length = np.hypot(*np.diff(path.xy, axis=0).T)
+    return length / np.maximum(path.arrive[1:] - path.leave[:-1], 1e-9)

@@ -1,0 +1,116 @@
+"""The plan's passing order: derived from the plan's own clock, it can neither wait in a
+circle nor let two vehicles closer than their reach, however they are delayed."""
+
+from __future__ import annotations
+
+import functools
+import itertools
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gcs.mission.passing_order import PassingOrder, PlannedPath
+from planner.experiments.scenario_generator import crossing_scenario, random_scenario
+from planner.pipeline import PlannerSettings, plan
+from planner.scenario import Scenario
+
+CELL_M = 10.0
+
+
+@functools.cache
+def planned(family: str, seed: int) -> tuple[Scenario, dict[str, PlannedPath]]:
+    """A plan of a generated scenario, as metres on the plan's clock."""
+    if family == "crossing":
+        scenario = crossing_scenario(seed, size=14, uavs=5, objects=0)
+    else:
+        scenario = random_scenario(seed, size=16, uavs=6, objects=0)
+    result = plan(scenario, PlannerSettings(seed=seed))
+    assert result.feasible, result.conflicts
+    cell = scenario.grid.cell_size_m
+    radii = {u.id: u.radius * cell for u in scenario.uavs}
+    paths = {u.id: PlannedPath.of(u.id, u.trajectory, cell, radii[u.id]) for u in result.uavs}
+    return scenario, paths
+
+
+PLANS = st.tuples(st.sampled_from(["crossing", "random"]), st.integers(0, 5))
+
+
+def _crossing_pair(offset_s: float) -> dict[str, PlannedPath]:
+    """a flies east through (50, 0), b north through it, `offset_s` later, both 5 m/s."""
+    a = PlannedPath("a", np.array([[0.0, 0.0], [100.0, 0.0]]), np.array([0.0, 20.0]),
+                    np.array([0.0, 20.0]), 3.0)  # fmt: skip
+    b = PlannedPath("b", np.array([[50.0, -50.0], [50.0, 50.0]]),
+                    np.array([offset_s, offset_s + 20.0]), np.array([offset_s, offset_s + 20.0]),
+                    3.0)  # fmt: skip
+    return {"a": a, "b": b}
+
+
+def test_at_a_crossing_the_later_one_waits_short_of_it_until_the_first_has_passed() -> None:
+    order = PassingOrder.derive(_crossing_pair(offset_s=5.0).values(), margin_m=0.5)
+    assert order.waits["a"] == []  # a crosses first in the plan
+    first = order.limit("b", {"a": 0.0, "b": 0.0})
+    assert first.leader == "a"
+    assert 50.0 - 6.5 - 0.5 <= first.at_m <= 50.0 - 6.5  # short of the crossing by 2R + margin
+    assert order.limit("b", {"a": 50.0 + 6.5 + 0.6}).at_m == np.inf  # a is through
+
+
+def test_where_the_plan_flies_two_side_by_side_the_reach_is_what_the_plan_keeps() -> None:
+    a = PlannedPath("a", np.array([[0.0, 0.0], [100.0, 0.0]]), np.array([0.0, 20.0]),
+                    np.array([0.0, 20.0]), 3.0)  # fmt: skip
+    b = PlannedPath("b", np.array([[0.0, 6.3], [100.0, 6.3]]), np.array([0.0, 20.0]),
+                    np.array([0.0, 20.0]), 3.0)  # fmt: skip
+    order = PassingOrder.derive([a, b], margin_m=0.5)
+    assert order.reach_m[("a", "b")] == pytest.approx(6.3 - order.step_m)
+    assert order.narrowest_margin_m({"a": 3.0, "b": 3.0}) == pytest.approx(0.3 - order.step_m)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(PLANS)
+def test_every_wait_points_forward_in_the_plans_time(family_seed: tuple[str, int]) -> None:
+    """The leader leaves before the follower arrives, on the plan's clock: so no chain of
+    waits can come back to where it began."""
+    _, paths = planned(*family_seed)
+    order = PassingOrder.derive(paths.values(), margin_m=0.6)
+    for waits in order.waits.values():
+        for wait in waits:
+            leaves, arrives = wait.plan_times.T
+            assert np.all(leaves <= arrives + 1e-9)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(PLANS, st.integers(0, 2**31 - 1))
+def test_whatever_the_delays_someone_can_always_move_and_nobody_comes_closer_than_reach(
+    family_seed: tuple[str, int], seed: int
+) -> None:
+    """An adversary moves the vehicles at random speeds, holding some still for a while
+    and keeping each over its goal a while before it is down (out of everyone's way),
+    always within their limits: the fleet never ends up with every vehicle still up stuck
+    at its limit, and no pair ever comes closer than its reach (less a step)."""
+    _, paths = planned(*family_seed)
+    order = PassingOrder.derive(paths.values(), margin_m=0.6)
+    rng = np.random.default_rng(seed)
+    at = dict.fromkeys(paths, 0.0)
+    lengths = {uav: p.length for uav, p in paths.items()}
+    for _ in range(20_000):
+        up = [uav for uav in paths if at[uav] < np.inf]
+        if not up:
+            break
+        for uav in up:  # over its goal: down at some point, never before
+            if at[uav] >= lengths[uav] and rng.random() < 0.05:
+                at[uav] = np.inf
+        flying = [uav for uav in up if at[uav] < lengths[uav]]
+        room = {uav: min(order.limit(uav, at).at_m, lengths[uav]) - at[uav] for uav in flying}
+        movable = [uav for uav in flying if room[uav] > 1e-9]
+        assert movable or len(flying) < len(up), f"every vehicle still up is stuck: {at}"
+        for uav in movable:
+            if rng.random() < 0.7:  # the others are held up this step
+                at[uav] += min(room[uav], rng.uniform(0.0, 2.0))
+        for a, b in itertools.combinations(sorted(paths), 2):
+            if np.inf in (at[a], at[b]):
+                continue
+            gap = np.hypot(*np.subtract(paths[a].position(at[a]), paths[b].position(at[b])))
+            assert gap >= order.reach_m[(a, b)] - order.step_m - 1e-6, (a, b, at)
+    else:
+        pytest.fail("the adversary ran out of steps")
