@@ -81,7 +81,7 @@ class InProcessService:
         transport = ASGIWebSocketTransport(self.app)
         async with (
             httpx.AsyncClient(transport=transport, base_url=BASE_URL) as client,
-            aconnect_ws(path, client, headers=headers) as ws,
+            aconnect_ws(path, client, headers=dict(headers or {})) as ws,
         ):
             yield ws
 

@@ -1,0 +1,117 @@
+"""A flight that has ended leaves nothing behind (issue 10, invariant 8).
+
+In process (the service's app, simulated vehicles in memory, one virtual clock), so that
+the test can look at what the service holds: after 50 flights in a row the links carry
+as many callbacks as before the first, no flight is kept live, and the memory the
+service holds is flat.
+"""
+
+from __future__ import annotations
+
+import gc
+import tracemalloc
+
+import httpx
+import pytest
+
+from planner.cases import load_case
+from planner.scenario import Scenario
+from tests.inprocess.flying import online, register
+from tests.inprocess.service import InProcessService, until
+
+pytestmark = [pytest.mark.virtual_clock]
+
+FLIGHTS = 50
+FLOWN = 2  # flown there and back; the others uploaded and cancelled
+
+
+async def test_fifty_flights_in_a_row_leave_callbacks_and_memory_flat(
+    gcs: InProcessService,
+) -> None:
+    client = gcs.client
+    assert gcs.app is not None
+    services = gcs.app.state.services
+    scenario = load_case("case-1")
+    sim = await gcs.vehicles.at_starts(scenario)
+    there, back = await _plan(client, scenario), await _plan(client, _reversed(scenario))
+    ids = [await register(client, sim.connection_string(k)) for k in sim.sysids]
+    bindings = dict(zip(["uav1", "uav2"], ids, strict=True))
+
+    async def all_online() -> bool:
+        return all([await online(client, v) for v in ids])
+
+    await until(all_online, 30, "vehicles online")
+    links = [services.registry.link(v) for v in ids]
+    before = [link.callback_count for link in links]
+    try:
+        for k in range(FLIGHTS):
+            if k == FLOWN:  # memory is compared from the 10th flight to the 50th; tracing
+                tracemalloc.start()  # the flown flights' every allocation only slows them
+            plan = back if k == 1 else there  # the second flight flies home again
+            await _one_flight(client, plan, bindings, fly=k < FLOWN)
+            assert [link.callback_count for link in links] == before, k
+            assert not services.flights.book.active, k
+            if k == 9:
+                first = await _service_memory(gcs)
+        last = await _service_memory(gcs)
+    finally:
+        tracemalloc.stop()
+    growth = sum(s.size_diff for s in last.compare_to(first, "filename"))
+    top = "\n".join(str(s) for s in last.compare_to(first, "lineno")[:8])
+    assert growth < 1_000_000, f"{growth / 1e6:.1f} MB more after 40 more flights:\n{top}"
+
+
+async def _service_memory(gcs: InProcessService) -> tracemalloc.Snapshot:
+    """What the service holds once its stored events are written, without the simulated
+    vehicles that share the process (their tracks grow with simulated time)."""
+    assert gcs.app is not None
+    await gcs.app.state.services.events.flush()
+    gc.collect()
+    return tracemalloc.take_snapshot().filter_traces(
+        [
+            tracemalloc.Filter(False, "*/sitl_mock/*"),
+            tracemalloc.Filter(False, "*/numpy/*"),
+            tracemalloc.Filter(False, tracemalloc.__file__),
+        ]
+    )
+
+
+async def _plan(client: httpx.AsyncClient, scenario: Scenario) -> str:
+    answer = await client.post("/scenarios", json=scenario.model_dump(mode="json"))
+    assert answer.status_code == 201, answer.text
+    sid = answer.json()["id"]
+    planned = await client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30})
+    assert planned.status_code == 201, planned.text
+    plan = planned.json()
+    assert plan["plan"]["feasible"], plan
+    return str(plan["id"])
+
+
+def _reversed(scenario: Scenario) -> Scenario:
+    uavs = [u.model_copy(update={"start": u.goal, "goal": u.start}) for u in scenario.uavs]
+    return scenario.model_copy(update={"uavs": uavs, "name": f"{scenario.name} back"})
+
+
+async def _one_flight(
+    client: httpx.AsyncClient, plan_id: str, bindings: dict[str, str], *, fly: bool
+) -> None:
+    created = await client.post("/flights", json={"plan_id": plan_id, "bindings": bindings})
+    assert created.status_code == 201, created.text
+    flight = created.json()["id"]
+    uploaded = await client.post(f"/flights/{flight}/upload")
+    assert uploaded.status_code == 200 and uploaded.json()["flight"]["state"] == "uploaded"
+    if not fly:
+        cancelled = await client.post(f"/flights/{flight}/cancel")
+        assert cancelled.json()["state"] == "cancelled", cancelled.text
+        return
+    assert (await client.post(f"/flights/{flight}/start")).status_code == 202
+
+    async def ended() -> str | None:
+        state = await _state(client, flight)
+        return state if state in ("landed", "ended", "interrupted") else None
+
+    assert await until(ended, 600, "the flight's end") == "landed"
+
+
+async def _state(client: httpx.AsyncClient, flight: str) -> str:
+    return str((await client.get(f"/flights/{flight}")).json()["state"])
