@@ -1,0 +1,443 @@
+"""One fuzzed flight, through the in-process service, on its own virtual clock.
+
+The flight is made and flown through the API as an operator's client would, the operator's
+actions are sent at their moments, and the invariants are watched all along:
+
+- no two airborne vehicles closer than 2R, by the simulator's truth (a vehicle sent home
+  is left out from then on: RTL flies straight home, outside the plan's order);
+- every operator command is answered by every vehicle that is online, within 1 s;
+- the flight ends (landed, aborted, ended; after a restart, aborted by the operator);
+- every state change is one the transition table allows;
+- every event the flight told its listeners is stored;
+- no answer is a 5xx, and nothing raises where nobody catches it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import functools
+import itertools
+import json
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+from gcs.mission.geodesy import GridFrame, TangentPlane
+from gcs.service import planning_pool
+from gcs.service.states import FLIGHT_TRANSITIONS, FlightState
+from sitl_mock import Simulator
+from sitl_mock.virtual_time import VirtualTimeLoop
+from tests.fuzz.cases import LATE_TAKE_OFF_S, Action, FuzzCase
+from tests.inprocess.service import InProcessService, until
+from tests.inprocess.vehicles import SimulatedVehicles, configs_at_starts
+
+ALTITUDE_M = 10.0
+_STOPPED = frozenset({"BRAKE", "LAND", "stopped"})
+_EFFECTS = {
+    "abort-land": frozenset({"LAND", "stopped"}),
+    "abort-rtl": frozenset({"RTL", "LAND", "stopped"}),
+    "land": frozenset({"LAND", "stopped"}),
+    "rtl": frozenset({"RTL", "LAND", "stopped"}),
+    "pause": _STOPPED,
+    "hold": _STOPPED,
+}
+"""What a command must have made of each vehicle it reached within ANSWER_WITHIN_S: its
+mode, or "stopped" (told to hold where it is, or down); unless a later command to it came
+first."""
+ANSWER_WITHIN_S = 1.0
+WATCH_EVERY_S = 0.1
+END_WITHIN_S = 900.0
+REABORT_S = 300.0
+"""An abort that has not brought everyone down by then (held after it, say) is given again."""
+FINAL = {"landed", "ended", "aborted"}
+PLAN_REQUEST = {"time_budget_s": None, "iterations": 60, "population": 20, "wait_s": 60}
+"""Iterations only: the same plan for the same scenario whatever the machine's load."""
+
+
+@dataclass
+class Report:
+    case: FuzzCase
+    violations: list[str] = field(default_factory=list)
+    outcome: str = ""
+    min_separation_m: float = math.inf
+    two_r_m: float = 0.0
+    virtual_s: float = 0.0
+    notes: list[str] = field(default_factory=list)
+    events: list[dict[str, Any]] = field(default_factory=list)  # told live, but Progress
+
+    def trace(self) -> str:
+        """The flight's events, one a line: what to read when replaying a failure."""
+        lines = []
+        for event in self.events:
+            rest = {k: v for k, v in event.items() if k not in ("type", "kind", "at")}
+            lines.append(f"{event.get('at', 0.0):8.2f} {event['kind']:<18} {rest}")
+        return "\n".join(lines)
+
+    def summary(self) -> str:
+        verdict = "OK" if not self.violations else f"{len(self.violations)} VIOLATIONS"
+        lines = [
+            f"{verdict}: {self.case.describe()}",
+            f"  ended {self.outcome or '?'} after {self.virtual_s:.0f} virtual s; closest "
+            f"{self.min_separation_m:.2f} m (2R {self.two_r_m:.2f} m)",
+        ]
+        lines += [f"  - {v}" for v in self.violations]
+        lines += [f"  . {n}" for n in self.notes]
+        if self.violations:
+            lines.append(f"  replay: python -m tests.fuzz --seed {self.case.seed}")
+        return "\n".join(lines)
+
+
+def run(case: FuzzCase, data_dir: Path) -> Report:
+    """The flight on a fresh virtual-time loop."""
+    loop = VirtualTimeLoop(executor_delay=lambda: case.storage_delay_s)
+    with asyncio.Runner(loop_factory=lambda: loop) as runner:
+        return runner.run(Flight(case, data_dir).fly())
+
+
+class _Unheard:
+    """Progress reports of a memoised plan: nobody listens."""
+
+    def put(self, item: object) -> None:
+        pass
+
+
+@functools.cache
+def _memo_plan(scenario: str, settings: str) -> dict[str, Any]:
+    return _plain_run_plan("fuzz", json.loads(scenario), json.loads(settings), _Unheard(), {})
+
+
+_plain_run_plan = planning_pool.run_plan
+
+
+def _memoised_run_plan(
+    job_id: str, scenario: dict[str, Any], settings: dict[str, Any], progress: Any, cancelled: Any
+) -> dict[str, Any]:
+    """The planner, once per scenario and settings in this process (plans are pure)."""
+    return _memo_plan(json.dumps(scenario, sort_keys=True), json.dumps(settings, sort_keys=True))
+
+
+@dataclass(frozen=True)
+class _Due:
+    """A command's effect on one vehicle, to be seen by `at`."""
+
+    action: Action
+    sysid: int
+    expected: frozenset[str]
+    at: float
+
+
+class Flight:
+    """One case flown, its invariants watched."""
+
+    def __init__(self, case: FuzzCase, data_dir: Path) -> None:
+        self.case = case
+        self.data_dir = data_dir
+        self.report = Report(case)
+        self.vehicles = SimulatedVehicles()
+        self.sim: Simulator | None = None
+        self.service = InProcessService(data_dir, self.vehicles)
+        self.flight_id = ""
+        self.sent_home: set[int] = set()
+        self.held: set[int] = set()  # held one by one by the operator, not continued yet
+        self.live: list[dict[str, Any]] = []
+        self.due: list[_Due] = []  # effects of commands, not seen yet
+        self._sent_at = 0.0
+
+    async def fly(self) -> Report:
+        loop = asyncio.get_running_loop()
+        loop.set_exception_handler(self._unhandled)
+        planning_pool.run_plan = _memoised_run_plan
+        errors = _ErrorLog(self.report)
+        logging.getLogger("mvo_gcs").addHandler(errors)
+        try:
+            await self._fly()
+        finally:
+            logging.getLogger("mvo_gcs").removeHandler(errors)
+            planning_pool.run_plan = _plain_run_plan
+            await self.service.stop()
+            await self.vehicles.stop()
+            self.report.virtual_s = loop.time()
+        return self.report
+
+    async def _fly(self) -> None:
+        scenario = self.case.scenario()
+        self.report.two_r_m = 2 * max(u.radius for u in scenario.uavs) * scenario.grid.cell_size_m
+        configs = configs_at_starts(scenario)
+        for config in configs:
+            config.faults = self.case.faults.get(config.sysid, config.faults)
+            if config.sysid == self.case.late:
+                config.estimate_delay_s = (config.estimate_delay_s or 0.0) + LATE_TAKE_OFF_S
+        self.sim = await self.vehicles.start(configs, seed=self.case.seed)
+        for sysid in self.sim.sysids:  # quicker landings: less simulated time per flight
+            self.sim.set_param(sysid, "LAND_SPD_MS", 1.5)
+        await self.service.start()
+        if not await self._make(scenario):
+            return
+        watching = asyncio.ensure_future(self._watch(GridFrame.of(scenario)))
+        listening = asyncio.ensure_future(self._listen())
+        try:
+            await self._operate()
+            await self._until_ended()
+        finally:
+            for task in (watching, listening):
+                task.cancel()
+            await asyncio.gather(watching, listening, return_exceptions=True)
+        await self._check_records()
+        self.report.events = [m for m in self.live if m.get("kind") not in (None, "Progress")]
+
+    # --- the flight through the API ---------------------------------------------------
+
+    async def _make(self, scenario: Any) -> bool:
+        client = self.service.client
+        sid = await self._call("post", "/scenarios", json=scenario.model_dump(mode="json"))
+        planned = await self._call(
+            "post", f"/scenarios/{sid.json()['id']}/plans", json=PLAN_REQUEST
+        )
+        if planned.status_code != 201 or not planned.json()["plan"]["feasible"]:
+            self.report.notes.append(f"no safe plan to fly ({planned.status_code})")
+            return False
+        assert self.sim is not None
+        ids = []
+        for sysid in self.sim.sysids:
+            answer = await self._call(
+                "post", "/vehicles", json={"connection": self.sim.connection_string(sysid)}
+            )
+            ids.append(answer.json()["id"])
+        bindings = {u.id: v for u, v in zip(scenario.uavs, ids, strict=True)}
+        made = await self._call(
+            "post", "/flights",
+            json={"plan_id": planned.json()["id"], "bindings": bindings,
+                  "max_speed_m_s": self.case.speed_m_s, "altitude_m": ALTITUDE_M},
+        )  # fmt: skip
+        if made.status_code == 422:  # a speed refused before anything armed: as it should
+            self.report.notes.append(f"speed refused: {made.json()['detail'][:120]}")
+            self.report.outcome = "refused"
+            return False
+        self.flight_id = made.json()["id"]
+
+        async def online() -> bool:
+            return all([(await client.get(f"/vehicles/{v}")).json()["live"]["online"] for v in ids])
+
+        await until(online, 60, "every vehicle online")
+        uploaded = await self._call("post", f"/flights/{self.flight_id}/upload")
+        if uploaded.status_code != 200 or uploaded.json()["flight"]["state"] != "uploaded":
+            self.report.notes.append(f"upload did not complete: {uploaded.text[:200]}")
+            self.report.outcome = "upload refused"
+            return False
+        return True
+
+    async def _operate(self) -> None:
+        """Start, then each operator action at its moment after the start was asked."""
+        loop = asyncio.get_running_loop()
+        started = loop.time()
+        await self._call("post", f"/flights/{self.flight_id}/start")
+        for action in self.case.actions:
+            await asyncio.sleep(max(0.0, started + action.at_s - loop.time()))
+            await self._act(action)
+
+    async def _act(self, action: Action) -> None:
+        flight = f"/flights/{self.flight_id}"
+        self._supersede(action)
+        self._sent_at = asyncio.get_running_loop().time()
+        if action.kind == "restart":
+            await self.service.restart()
+            return
+        if action.kind == "object":
+            await self._call(
+                "post", f"{flight}/objects", json={"cell": list(action.cell or (0, 0))}
+            )
+            return
+        if action.uav is not None:
+            vehicle = (await self.service.client.get(flight)).json()["bindings"][f"uav{action.uav}"]
+            answer = await self._call("post", f"/vehicles/{vehicle}/{action.kind}")
+            if action.kind == "rtl" and answer.status_code == 200:
+                self.sent_home.add(action.uav)
+            if answer.status_code == 200:
+                (self.held.add if action.kind == "hold" else self.held.discard)(action.uav)
+            self._check_answers(
+                action, answer, [answer.json()] if answer.status_code == 200 else []
+            )
+            return
+        if action.kind.startswith("abort"):
+            answer = await self._call("post", f"{flight}/abort", json={"mode": action.kind[6:]})
+            if action.kind == "abort-rtl" and answer.status_code == 200:
+                assert self.sim is not None
+                self.sent_home |= set(self.sim.sysids)
+        else:
+            answer = await self._call("post", f"{flight}/{action.kind}")
+        vehicles = answer.json().get("vehicles", []) if answer.status_code == 200 else []
+        self._check_answers(action, answer, vehicles)
+
+    def _check_answers(
+        self, action: Action, answer: httpx.Response, vehicles: list[dict[str, Any]]
+    ) -> None:
+        """A command is answered, by every vehicle that is online, and has its effect on
+        each within 1 s of being sent (looked for in the simulator until then)."""
+        if answer.status_code not in (200, 409):
+            self.report.violations.append(
+                f"{action.describe()}: answered {answer.status_code}: {answer.text[:200]}"
+            )
+        reached = []
+        for vehicle in vehicles:
+            if any(w in vehicle["detail"] for w in ("unreachable", "offline", "not commanded")):
+                continue  # not online, or out of the flight (sent down or home before)
+            if not vehicle["ok"]:
+                self.report.violations.append(
+                    f"{action.describe()}: {vehicle['uav_id'] or vehicle['vehicle_id']} "
+                    f"refused: {vehicle['detail']}"
+                )
+            elif vehicle["uav_id"]:
+                reached.append(int(vehicle["uav_id"].removeprefix("uav")))
+        expected = _EFFECTS.get(action.kind)
+        if expected is not None:
+            due = self._sent_at + ANSWER_WITHIN_S
+            self.due += [_Due(action, sysid, expected, due) for sysid in reached]
+
+    def _supersede(self, action: Action) -> None:
+        """A new command to a vehicle replaces what the last one was to do there."""
+        self.due = [d for d in self.due if action.uav is not None and d.sysid != action.uav]
+
+    def _check_effects(self) -> None:
+        """Each command's effect seen on each vehicle it reached, or a violation once due."""
+        assert self.sim is not None
+        now = asyncio.get_running_loop().time()
+        waiting = []
+        for due in self.due:
+            state = self.sim.state(due.sysid)
+            stopped = state.holding or not state.armed or state.alt < 0.5
+            if state.mode in due.expected or (stopped and "stopped" in due.expected):
+                continue
+            if now >= due.at:
+                self.report.violations.append(
+                    f"{due.action.describe()}: uav{due.sysid} still in {state.mode} "
+                    f"{ANSWER_WITHIN_S:g} s after"
+                )
+            else:
+                waiting.append(due)
+        self.due = waiting
+
+    async def _until_ended(self) -> None:
+        """Let go of what the operator holds and wait for the end; after a restart
+        (interrupted), or when a flight held after its abort hovers on, abort with LAND, as
+        an operator would; a flight that does not end within the bound is a violation."""
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + END_WITHIN_S
+        for uav in sorted(self.held):
+            await self._act(Action(0.0, "continue", uav=uav))
+        if (await self._state()) == "paused":
+            await self._act(Action(0.0, "continue"))
+        aborted_at = -math.inf
+        while loop.time() < deadline:
+            state = await self._state()
+            if state in FINAL:
+                self.report.outcome = state
+                return
+            stuck = state == "aborting" and loop.time() - aborted_at > REABORT_S
+            if (state == "interrupted" and aborted_at < 0) or stuck:
+                aborted_at = loop.time()
+                await self._act(Action(0.0, "abort-land"))
+            await asyncio.sleep(1.0)
+        self.report.violations.append(f"the flight did not end within {END_WITHIN_S:.0f} s")
+
+    async def _state(self) -> str:
+        flight = (await self.service.client.get(f"/flights/{self.flight_id}")).json()
+        return str(flight["state"])
+
+    # --- watching ---------------------------------------------------------------------
+
+    async def _watch(self, frame: GridFrame) -> None:
+        """The simulator's truth every 0.1 s: no two airborne vehicles closer than 2R."""
+        assert self.sim is not None
+        plane = TangentPlane(frame.lat0, frame.lon0, frame.alt0)
+        two_r = self.report.two_r_m
+        while True:
+            states = [self.sim.state(k) for k in self.sim.sysids]
+            up = {
+                s.sysid: plane.east_north(s.lat, s.lon)
+                for s in states
+                if s.alt > 1.0 and s.sysid not in self.sent_home and s.mode != "RTL"
+            }
+            for (a, pa), (b, pb) in itertools.combinations(sorted(up.items()), 2):
+                gap = math.hypot(pa[0] - pb[0], pa[1] - pb[1])
+                self.report.min_separation_m = min(self.report.min_separation_m, gap)
+                if gap < two_r and len(self.report.violations) < 20:
+                    self.report.violations.append(
+                        f"uav{a} and uav{b} {gap:.2f} m apart (2R {two_r:.2f} m) at "
+                        f"{asyncio.get_running_loop().time():.1f} s"
+                    )
+            self._check_effects()
+            await asyncio.sleep(WATCH_EVERY_S)
+
+    async def _listen(self) -> None:
+        """What the flight tells its live listeners (kept to compare with storage), from
+        whichever service instance runs (a restart makes a new one)."""
+        while True:
+            book = self._book()
+            queue = book.listen(self.flight_id)
+            try:
+                while self.service.app is not None and self._book() is book:
+                    try:
+                        async with asyncio.timeout(1.0):
+                            self.live.append(await queue.get())
+                    except TimeoutError:
+                        continue
+            finally:
+                book.unlisten(self.flight_id, queue)
+            await until(lambda: self.service.app is not None, 60, "the service back")
+
+    def _book(self) -> Any:
+        assert self.service.app is not None
+        return self.service.app.state.services.flights.book
+
+    async def _check_records(self) -> None:
+        """The stored states follow the table, and every event told live was stored."""
+        stored = await self._stored_events()
+        states = [FlightState(e["data"]["state"]) for e in stored if e["kind"] == "FlightState"]
+        for old, new in itertools.pairwise(states):
+            if new not in FLIGHT_TRANSITIONS[old] and new != old:
+                self.report.violations.append(f"state {old.value} -> {new.value} not allowed")
+        kept = {json.dumps(e["data"], sort_keys=True) for e in stored}
+        for message in self.live:
+            if message.get("kind") in (None, "Progress") or message.get("type") != "event":
+                continue
+            if json.dumps(message, sort_keys=True) not in kept:
+                self.report.violations.append(f"event not stored: {message.get('kind')}")
+
+    async def _stored_events(self) -> list[dict[str, Any]]:
+        events: list[dict[str, Any]] = []
+        while True:
+            params: dict[str, Any] = {"limit": 1000}
+            if events:
+                params["after"] = events[-1]["id"]
+            page = (
+                await self.service.client.get(f"/flights/{self.flight_id}/events", params=params)
+            ).json()
+            events += page
+            if len(page) < 1000:
+                return events
+
+    async def _call(self, method: str, path: str, **kwargs: Any) -> httpx.Response:
+        answer = await self.service.client.request(method, path, **kwargs)
+        if answer.status_code >= 500:
+            self.report.violations.append(f"{method.upper()} {path}: {answer.status_code}")
+        return answer
+
+    def _unhandled(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+        self.report.violations.append(
+            f"unhandled: {context.get('message')} {context.get('exception')!r}"
+        )
+
+
+class _ErrorLog(logging.Handler):
+    """Every ERROR the service logs is a violation (a bug caught only by a last resort)."""
+
+    def __init__(self, report: Report) -> None:
+        super().__init__(logging.ERROR)
+        self.report = report
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.report.violations.append(f"logged error: {record.getMessage()[:200]}")
