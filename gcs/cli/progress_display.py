@@ -52,10 +52,13 @@ def event_line(event: FleetEvent) -> str | None:
             return f"{uav}: {phase} failed: {msg}"
         case StartCancelled(failed=failed, fallback=fallback):
             return f"start cancelled ({', '.join(failed)} failed); the others {fallback}"
-        case MissionsStarted(uav_ids=uavs, spread_ms=spread):
-            return f"{len(uavs)} missions started within {spread:.1f} ms"
-        case Waiting(uav_id=uav, waits_for=leader, how=how, gap_m=gap):
-            edging = " and edges closer" if how == "creep" else ""
+        case MissionsStarted(uav_ids=uavs, spread_ms=spread, timed_duration_s=timed):
+            return (
+                f"{len(uavs)} missions started within {spread:.1f} ms; the last arrives "
+                f"in {timed:.0f} s if nothing goes wrong"
+            )
+        case Waiting(uav_id=uav, waits_for=leader, how=how, gap_m=gap, speed_m_s=speed):
+            edging = f", approaching at {speed:g} m/s" if how == "creep" and speed else ""
             return f"{uav} waits for {leader} to pass first ({gap:.0f} m short){edging}"
         case WaitOver(uav_id=uav):
             return f"{uav} flies on"

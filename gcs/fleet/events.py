@@ -47,6 +47,7 @@ class VehicleFailed(FleetEvent):
 class MissionsStarted(FleetEvent):
     uav_ids: tuple[str, ...]
     spread_ms: float  # between the first and the last start command sent
+    timed_duration_s: float = 0.0  # to the last arrival, as the timed flight has it
 
 
 @dataclass(frozen=True)
@@ -67,13 +68,14 @@ class ItemReached(FleetEvent):
 
 @dataclass(frozen=True)
 class Waiting(FleetEvent):
-    """A vehicle stops (or edges closer, "creep") to let another pass first, as the plan
-    has it: it may not go beyond `gap_m` metres ahead until `waits_for` has passed."""
+    """A vehicle stops (or approaches slowly, "creep") to let another pass first, as the
+    plan has it: it may not go beyond `gap_m` metres ahead until `waits_for` has passed."""
 
     uav_id: str
     waits_for: str
     how: str  # "stop" or "creep"
     gap_m: float
+    speed_m_s: float | None = None  # of an approach
 
 
 @dataclass(frozen=True)

@@ -136,12 +136,13 @@ class Follower:
         gated = [uav for uav, m in crew.members.items() if self._gated(uav, m)]
         along = {uav: m.along for uav, m in crew.members.items()}
         for change in crew.gatekeeper.decide(along, gated):
-            crew.commander.want(change.uav_id, change.gate)
+            crew.commander.want(change.uav_id, change.gate, change.speed_m_s)
             if change.gate == Gate.GO:
                 crew.bus.publish(WaitOver(change.uav_id))
             else:
+                leader, how = change.waits_for or "", change.gate.value
                 crew.bus.publish(
-                    Waiting(change.uav_id, change.waits_for or "", change.gate.value, change.gap_m)
+                    Waiting(change.uav_id, leader, how, change.gap_m, change.speed_m_s)
                 )
 
     def _gated(self, uav: str, member: Member) -> bool:

@@ -3,8 +3,9 @@
 Every look: where each vehicle is along its path (`path_progress`), how far the passing
 order lets it go while the others are where they are (`PassingOrder.limit`), and what
 the stopping rule makes of the gap at its speed (`StoppingRule.decide`): fly on, stop
-(DO_PAUSE_CONTINUE, or a brake where ArduCopter will not pause), or edge up to the limit
-slowly (DO_CHANGE_SPEED) because someone else waits for it to pass a point before it.
+(DO_PAUSE_CONTINUE, or a brake where ArduCopter will not pause), or approach the limit
+slowly (DO_CHANGE_SPEED), ready to stop short of it, to be there sooner once the way is
+free, or because someone else waits for it to pass a point before it.
 A vehicle waits only for those its path meets, never for a clock: a late take-off, an
 operator's hold or a lost link delays the vehicles that depend on that one, and nobody
 else. A vehicle down for good (landed at its goal, or sent down) is in nobody's way.
@@ -36,6 +37,7 @@ class GateChange:
     gate: Gate
     waits_for: str | None
     gap_m: float
+    speed_m_s: float | None = None  # of an approach (CREEP)
 
 
 class Gatekeeper:
@@ -52,6 +54,7 @@ class Gatekeeper:
         self.rule = rule or StoppingRule()
         self.gates = dict.fromkeys(self.limits, Gate.GO)
         self.waits_for: dict[str, str | None] = dict.fromkeys(self.limits)
+        self.approach: dict[str, float | None] = {}  # of the vehicles approaching (CREEP)
         self.gone: set[str] = set()
 
     def decide(
@@ -66,12 +69,14 @@ class Gatekeeper:
         for uav in chosen:
             p, limit = progress[uav], limits[uav]
             gap = limit.at_m - p.s
-            gate = self.rule.decide(
-                self.gates[uav], gap, p.speed, p.accel, self.limits[uav], uav in waited_on
-            )
+            waited, own = uav in waited_on, self.limits[uav]
+            gate = self.rule.decide(self.gates[uav], gap, p.speed, p.accel, own, waited)
             waits_for = limit.leader if gate != Gate.GO else None
+            if gate == Gate.CREEP and self.gates[uav] != Gate.CREEP:
+                self.approach[uav] = self.rule.approach_speed(gap, own, waited)
             if gate != self.gates[uav] or waits_for != self.waits_for[uav]:
-                changes.append(GateChange(uav, gate, waits_for, gap))
+                speed = self.approach.get(uav) if gate == Gate.CREEP else None
+                changes.append(GateChange(uav, gate, waits_for, gap, speed))
             self.gates[uav], self.waits_for[uav] = gate, waits_for
         return changes
 
@@ -102,17 +107,26 @@ class GateCommander:
         self._on_failure = on_failure
         self.applied = dict.fromkeys(actions, Gate.GO)
         self._wanted = dict.fromkeys(actions, Gate.GO)
+        self._approach: dict[str, float] = {}  # the speed wanted of an approach
+        self._slowed: dict[str, float | None] = {}  # the approach speed last commanded
         self._tasks: dict[str, asyncio.Task[None]] = {}
 
-    def want(self, uav_id: str, gate: Gate) -> None:
+    def want(self, uav_id: str, gate: Gate, speed_m_s: float | None = None) -> None:
+        """Bring the vehicle to `gate` (approaching at `speed_m_s`, a CREEP's)."""
         self._wanted[uav_id] = gate
+        if speed_m_s is not None:
+            self._approach[uav_id] = speed_m_s
         task = self._tasks.get(uav_id)
         if task is None or task.done():
             self._tasks[uav_id] = asyncio.ensure_future(self._bring(uav_id))
 
     def settle(self, uav_id: str, gate: Gate) -> None:
-        """The vehicle is at `gate` by other means (the operator held or continued it)."""
+        """The vehicle is at `gate` by other means (the operator held or continued it);
+        one continued after an approach gets its mission's speed back."""
         self.applied[uav_id] = self._wanted[uav_id] = gate
+        if gate == Gate.GO and self._slowed.get(uav_id) is not None:
+            self.applied[uav_id] = Gate.CREEP  # so that `_bring` restores the speed
+            self.want(uav_id, Gate.GO)
 
     async def _bring(self, uav_id: str) -> None:
         while self.applied[uav_id] != self._wanted[uav_id]:
@@ -125,14 +139,16 @@ class GateCommander:
             self.applied[uav_id] = target
 
     async def _change(self, uav_id: str, old: Gate, new: Gate) -> None:
+        """Pause for STOP; otherwise the speed first (an approach's, or the mission's
+        again after one, even one that ended in a stop), then resume if stopped."""
         actions = self._actions[uav_id]
         if new == Gate.STOP:
             await actions.pause_mission()
             return
-        if new == Gate.CREEP:
-            await actions.change_speed(self._rule.creep_m_s)
-        elif old == Gate.CREEP:
-            await actions.change_speed(self._cruise(uav_id))
+        speed = self._approach.get(uav_id, self._rule.creep_m_s) if new == Gate.CREEP else None
+        if speed != self._slowed.get(uav_id):
+            await actions.change_speed(self._cruise(uav_id) if speed is None else speed)
+            self._slowed[uav_id] = speed
         if old == Gate.STOP:
             await actions.resume_mission()
 

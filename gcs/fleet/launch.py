@@ -78,7 +78,7 @@ async def start(crew: Crew) -> dict[str, VehicleOutcome[None]]:
     outcomes = await crew.each(start_one, "start")
     crew.started = True
     spread = (max(sent) - min(sent)) * 1000 if sent else 0.0
-    crew.bus.publish(MissionsStarted(tuple(crew.members), spread))
+    crew.bus.publish(MissionsStarted(tuple(crew.members), spread, crew.flight.duration_s))
     failed = [uav for uav, o in outcomes.items() if not o.ok]
     if failed:
         await abort(crew, crew.settings.fallback.value, f"{', '.join(failed)} did not start")

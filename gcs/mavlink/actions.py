@@ -35,6 +35,8 @@ URGENT = CommandPolicy(timeout_s=0.2, retries=15)
 """The operator's and the passing order's commands in flight (pause, brake, continue,
 land, return home, speed): sent again soon when no answer comes, for a lost packet must
 not cost a vehicle metres at speed nor the operator a second; each is harmless twice."""
+LIFTING_MM = 300  # above home: a take-off under way
+LIFT_OFF_SEEN_S = 3.0  # how long a re-sent take-off's refusal waits to see the climb
 """Arming refusals that waiting does not cure (the mode, a switch only a person can press)."""
 
 
@@ -112,13 +114,34 @@ class FlightActions:
         await self.command(mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0)
 
     async def takeoff(self, altitude_m: float) -> None:
-        if self.link.autopilot == Autopilot.PX4:
-            amsl = await self.home_altitude_amsl() + altitude_m
-            await self.command(
-                mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, amsl
-            )
-        else:
-            await self.command(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, altitude_m)
+        """NAV_TAKEOFF. A re-sent one that fails because the vehicle is already lifting
+        off ("already flying": the first one's ACK was lost) has done its work."""
+        try:
+            if self.link.autopilot == Autopilot.PX4:
+                amsl = await self.home_altitude_amsl() + altitude_m
+                await self.command(
+                    mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, amsl
+                )
+            else:
+                await self.command(mavlink2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, altitude_m)
+        except (CommandFailedError, CommandDeniedError) as refused:
+            if refused.attempts == 1 or not await self._lifting_off():
+                raise
+
+    async def _lifting_off(self) -> bool:
+        """Whether the vehicle climbs away from the ground within a moment."""
+
+        def climbing(msg: object) -> bool:
+            return getattr(msg, "relative_alt", 0) > LIFTING_MM or getattr(msg, "vz", 0) < -10
+
+        here = self.link.state.position
+        if here is not None and here.relative_alt_m * 1000 > LIFTING_MM:
+            return True
+        try:
+            await self.link.wait_for("GLOBAL_POSITION_INT", climbing, LIFT_OFF_SEEN_S)
+        except WaitTimeoutError:
+            return False
+        return True
 
     async def home_altitude_amsl(self) -> float:
         """The home altitude (PX4 takes off to an AMSL altitude), asked for if the

@@ -27,7 +27,9 @@ class CommandPolicy:
     """How long to wait for an ACK and how often to re-send (failure mode 1: settable)."""
 
     timeout_s: float = 1.5
-    retries: int = 3
+    retries: int = 7
+    """Re-sends after the first: with 20 % loss each way, a try is lost 36 % of the time
+    and eight in a row 0.03 % (four in a row were 1.7 %: one start in a few failed)."""
     in_progress_timeout_s: float = 30.0
 
 
@@ -100,7 +102,9 @@ async def _exchange(
             if ack.result == mavlink2.MAV_RESULT_ACCEPTED:
                 return CommandAck(command, ack.result, attempt + 1, "; ".join(texts))
             await _collect_trailing_texts(sub, texts)
-            raise command_error(link.sysid, command, ack.result, "; ".join(texts))
+            error = command_error(link.sysid, command, ack.result, "; ".join(texts))
+            error.attempts = attempt + 1
+            raise error
     raise CommandTimeoutError(
         link.sysid,
         command,

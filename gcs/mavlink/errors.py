@@ -201,6 +201,7 @@ class CommandError(GcsError):
         self.command = command
         self.result = result
         self.statustext = statustext
+        self.attempts = 1  # how many times it was sent: after the first, an ACK was lost
 
 
 class CommandTemporarilyRejectedError(CommandError):

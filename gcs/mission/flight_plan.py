@@ -13,6 +13,8 @@ speed it can).
 from __future__ import annotations
 
 import dataclasses
+import itertools
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -39,10 +41,12 @@ TURN_RADIUS_M = 0.5
 """A vehicle passing a waypoint cuts the corner by up to its acceptance radius (ArduCopter's
 default is 2 m): close, so that the path flown is the path the order was derived for."""
 MAX_SPEED_M_S = 20.0
+"""ArduCopter's WPNAV_SPEED range ends at 20 m/s."""
 DEFAULT_CLEARANCE_M = 1.3
 """What a plan made for flying keeps beyond 2R: twice what a vehicle may stray at 10 m/s
 (`stray_m`), so that the passing order can keep every pair 2R apart up to that speed."""
-"""ArduCopter's WPNAV_SPEED range ends at 20 m/s."""
+STOPPING_NEXT = frozenset({Command.NAV_LAND, Command.NAV_RETURN_TO_LAUNCH, Command.NAV_TAKEOFF})
+"""What ArduCopter will not fly into without stopping at the waypoint before."""
 
 
 class UnsafeSpeed(ValueError):
@@ -76,7 +80,18 @@ class FlightPlan:
     def timed(self) -> dict[str, TimedPath]:
         """The flight when nothing goes wrong (computed when first asked: it is a
         simulation of every vehicle, a second or so for ten)."""
-        return fly(self.paths, self.leg_speeds, self.limits, self.order, altitude_m=self.altitude_m)
+        return fly(
+            self.paths, self.leg_speeds, self.limits, self.order,
+            altitude_m=self.altitude_m, stops=self.stops,
+        )  # fmt: skip
+
+    @cached_property
+    def stops(self) -> dict[str, Floats]:
+        """Where each vehicle comes to rest on the way (metres along its path)."""
+        return {
+            uav: stopping_points(self.missions[uav], path, self.frame)
+            for uav, path in self.paths.items()
+        }
 
     @property
     def duration_s(self) -> float:
@@ -201,6 +216,20 @@ def stretched(plan: Plan, scenario: Scenario, factor: float) -> tuple[Plan, Scen
     return plan.model_copy(update={"uavs": uavs}), scenario.model_copy(update={"uavs": specs})
 
 
+def stopping_points(mission: Mission, path: PlannedPath, frame: GridFrame) -> Floats:
+    """Where ArduCopter stops on the way: at a waypoint followed by a landing (or by a
+    return home, a take-off, loiter turns), which it will not fly through (ModeAuto::
+    set_next_wp), whatever the corner; in metres along `path`."""
+    after_takeoff = mission.items[takeoff_index(mission.items) + 1 :]
+    items = [i for i in after_takeoff if i.command != Command.DO_CHANGE_SPEED]
+    stops = []
+    for item, following in itertools.pairwise(items):
+        if item.command == Command.NAV_WAYPOINT and following.command in STOPPING_NEXT:
+            x, y = frame.to_cells(item.lat, item.lon)
+            stops.append(_along(path, np.array([float(x), float(y)]) * frame.cell_size_m))
+    return np.array(stops)
+
+
 def timed_visits(mission: Mission, timed: TimedPath, frame: GridFrame) -> list[Visit]:
     """Each NAV item after take-off with the time the timed flight gets there (no holds:
     a flight waits where the passing order says, not at a waypoint)."""
@@ -258,14 +287,17 @@ def _refuse_if_unsafe(order: PassingOrder, radius: Mapping[str, float], speed: f
     margin, needed = order.narrowest_margin_m(radius), 2 * stray_m(speed) - 1e-9
     if margin >= needed:
         return
-    highest = highest_speed_for_stray(margin / 2)
+    safe = highest_speed_for_stray(margin / 2)
+    highest = math.floor(safe * 10) / 10 if safe is not None else None  # what is offered
+    if highest is not None and highest <= 0:
+        highest = None
     pairs = ", ".join(
         f"{a} and {b} ({reach - radius[a] - radius[b]:+.2f} m beyond 2R)"
         for (a, b), reach in sorted(order.reach_m.items())
         if reach - radius[a] - radius[b] < needed
     )
     advice = (
-        f"the highest speed it can keep safe is {highest:.1f} m/s"
+        f"the highest speed it can keep safe is {highest:g} m/s"
         if highest is not None
         else "no speed is safe: plan again with larger radii"
     )

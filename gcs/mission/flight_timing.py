@@ -22,7 +22,6 @@ from gcs.mission.motion import (
     CopterLimits,
     Gate,
     StoppingRule,
-    entry_speed_for,
     speed_profile,
     turn_angles,
 )
@@ -33,6 +32,12 @@ STEP_S = 0.05
 SAMPLE_S = 0.25
 """Seconds between the points of a timed trajectory: a straight line between two of
 them is off the curve by at most accel·SAMPLE_S²/8, under 2 cm at 2.5 m/s²."""
+NO_STOPS = np.zeros(0)
+STOP_MATCH_M = 0.5  # a stop this close to a vertex is at that vertex
+STOPPED_M_S = 0.05
+ARRIVED_M = 0.5
+"""Stopped this close short of a vertex it slowed down for, a vehicle is there: chasing
+speeds stops a little short where ArduCopter's S-curve, planned to the point, does not."""
 
 
 def _limit(
@@ -86,25 +91,46 @@ class _Vehicle:
     a: float = 0.0
     gate: Gate = Gate.GO
     done: bool = False
+    slowing_for: int | None = None  # the vertex it is slowing down for
+    approach_m_s: float = 0.0  # how fast it approaches its limit (CREEP)
 
     @classmethod
-    def of(cls, path: PlannedPath, leg_speed: Floats, limits: CopterLimits) -> _Vehicle:
+    def of(
+        cls, path: PlannedPath, leg_speed: Floats, limits: CopterLimits, stops: Floats = NO_STOPS
+    ) -> _Vehicle:
+        """`stops`: metres along the path where the autopilot comes to rest."""
         s = path.s
         turns = turn_angles(path.xy) if len(s) > 2 else np.zeros(0)
-        knots, bound = speed_profile(s, leg_speed, turns, limits)
+        at_rest = np.abs(s[:, None] - np.asarray(stops)[None, :]).min(axis=1, initial=np.inf)
+        knots, bound = speed_profile(s, leg_speed, turns, limits, at_rest < STOP_MATCH_M)
         return cls(path, limits, knots, bound, leg_speed)
 
     def cap(self, rule: StoppingRule) -> float:
-        """The speed the vehicle may have here: its leg's, what the next vertex allows,
-        and its gate's."""
+        """The speed the vehicle aims for here: its leg's (or its gate's), until it must
+        slow down for the next vertex, as an S-curve does: from the moment what is left
+        is what slowing down from its speed and acceleration takes, it aims for the
+        vertex's speed (and lets go again if it stops short of it)."""
         if self.gate == Gate.STOP:
             return 0.0
-        k = min(int(np.searchsorted(self.vertex_s, self.s, side="right")), len(self.vertex_s) - 1)
+        k = self._next_vertex()
+        if self.slowing_for == k and self.v < STOPPED_M_S:  # stopped for it
+            if self.vertex_s[k] - self.s <= ARRIVED_M:
+                self.s = float(self.vertex_s[k])  # there: on to the next one
+                k = self._next_vertex()
+            self.slowing_for = None  # (or stopped short of it: on again)
         leg = self.leg_speed[max(0, k - 1)] if len(self.leg_speed) else 0.0
         if self.gate == Gate.CREEP:
-            leg = min(leg, rule.creep_m_s)
-        ahead = entry_speed_for(self.vertex_s[k] - self.s, self.vertex_speed[k], self.limits)
-        return min(leg, ahead)
+            leg = min(leg, self.approach_m_s)
+        ahead, gap = float(self.vertex_speed[k]), float(self.vertex_s[k] - self.s)
+        if self.slowing_for != k and self.v > ahead:
+            needed = self.limits.slowing_distance(self.v, self.a, ahead)
+            if gap <= needed:
+                self.slowing_for = k
+        return min(leg, ahead) if self.slowing_for == k else leg
+
+    def _next_vertex(self) -> int:
+        k = int(np.searchsorted(self.vertex_s, self.s, side="right"))
+        return min(k, len(self.vertex_s) - 1)
 
     def step(self, target: float, dt: float) -> None:
         """Chase `target` speed: acceleration from a square-root shaper, ramped at the jerk
@@ -132,11 +158,17 @@ def fly(
     rule: StoppingRule | None = None,
     altitude_m: float = 20.0,
     max_s: float = 7200.0,
+    stops: Mapping[str, Floats] | None = None,
 ) -> dict[str, TimedPath]:
-    """Every vehicle from the common start to its end, waiting where `order` says. A
-    vehicle at its end is in the others' way until it has landed there."""
+    """Every vehicle from the common start to its end, waiting where `order` says and
+    coming to rest at its `stops` (metres along its path). A vehicle at its end is in the
+    others' way until it has landed there."""
     rule = rule or StoppingRule()
-    fleet = {uav: _Vehicle.of(p, leg_speeds[uav], limits[uav]) for uav, p in paths.items()}
+    stops = stops or {}
+    fleet = {
+        uav: _Vehicle.of(p, leg_speeds[uav], limits[uav], stops.get(uav, NO_STOPS))
+        for uav, p in paths.items()
+    }
     t, last_move = 0.0, 0.0
     every = max(1, round(SAMPLE_S / STEP_S))
     rows: dict[str, list[tuple[float, float]]] = {uav: [(0.0, 0.0)] for uav in fleet}
@@ -150,14 +182,11 @@ def fly(
             if vehicle.done:
                 continue
             at, _ = limits_now[uav]
-            vehicle.gate = rule.decide(
-                vehicle.gate,
-                at - vehicle.s,
-                vehicle.v,
-                vehicle.a,
-                vehicle.limits,
-                uav in waited_on,
-            )
+            gap, waited = at - vehicle.s, uav in waited_on
+            gate = rule.decide(vehicle.gate, gap, vehicle.v, vehicle.a, vehicle.limits, waited)
+            if gate == Gate.CREEP and vehicle.gate != Gate.CREEP:
+                vehicle.approach_m_s = rule.approach_speed(gap, vehicle.limits, waited) or 0.0
+            vehicle.gate = gate
             before = vehicle.s
             vehicle.step(vehicle.cap(rule), STEP_S)
             if vehicle.s > before + 1e-9:

@@ -77,12 +77,20 @@ class CopterLimits:
         SITL a pause stopped within 6.7 m from 5 m/s and 23.2 m from 10 m/s, a brake
         within 8.7 m and 20.1 m: the further of the two, with a tenth to spare; `paused`
         only, for a vehicle creeping mid-leg (where a pause is never refused)."""
-        accel, jerk = max(0.0, accel), self.stop_jerk_m_s3
+        pause = self.slowing_distance(speed, accel, 0.0, self.stop_jerk_m_s3)
+        peak = speed + max(0.0, accel) ** 2 / (2 * self.stop_jerk_m_s3)
+        brake = 0.0 if paused else BRAKE_REACH_S * peak
+        return SPARE * max(pause, brake)
+
+    def slowing_distance(
+        self, speed: float, accel: float, to: float, jerk: float | None = None
+    ) -> float:
+        """Metres from `speed` down to `to` while speeding up at `accel`, which must first
+        ramp down to nothing (the speed still grows meanwhile)."""
+        accel, jerk = max(0.0, accel), jerk or self.jerk_m_s3
         ramp = accel / jerk
         before = speed * ramp + accel * ramp * ramp / 2 - jerk * ramp**3 / 6
-        pause = before + self.change_distance(speed + accel * ramp / 2, 0.0, jerk)
-        brake = 0.0 if paused else BRAKE_REACH_S * (speed + accel * ramp / 2)
-        return SPARE * max(pause, brake)
+        return before + self.change_distance(speed + accel * ramp / 2, to, jerk)
 
     def landing_time(self, altitude_m: float) -> float:
         """Seconds from over the landing point to the ground, as ArduCopter's LAND does
@@ -129,10 +137,15 @@ def turn_angles(xy: Floats) -> Floats:
 
 
 def speed_profile(
-    s_vertices: Floats, leg_speeds: Floats, turns: Floats, limits: CopterLimits
+    s_vertices: Floats,
+    leg_speeds: Floats,
+    turns: Floats,
+    limits: CopterLimits,
+    stops: Floats | None = None,
 ) -> tuple[Floats, Floats]:
     """The highest speed at each vertex (entry) that the copter can have there and still
-    make every later corner and stop at the end: (s, v) knots, v = 0 at both ends.
+    make every later corner and stop at the end: (s, v) knots, v = 0 at both ends and
+    where `stops` (a mask over the vertices) says the autopilot comes to rest.
 
     A backward pass from the end: the speed at a vertex is bounded by its corner, by the
     legs on either side, and by what the slow-down to the next vertex's bound allows in
@@ -143,6 +156,8 @@ def speed_profile(
         return s_vertices.copy(), bound
     corners = np.array([limits.corner_speed(a) for a in turns])
     bound[1:-1] = np.minimum(np.minimum(corners, leg_speeds[:-1]), leg_speeds[1:])
+    if stops is not None:
+        bound[stops] = 0.0
     for k in range(n - 2, 0, -1):
         room = s_vertices[k + 1] - s_vertices[k]
         bound[k] = min(bound[k], entry_speed_for(room, bound[k + 1], limits))
@@ -167,7 +182,7 @@ class Gate(StrEnum):
 
     GO = "go"  # flies on at its leg's speed
     STOP = "stop"  # paused: waits for the vehicle ahead to get out of the way
-    CREEP = "creep"  # edges up to the point at `creep_m_s`: another waits for it to pass
+    CREEP = "creep"  # approaches the point slowly, from a stop, ready to stop short of it
 
 
 @dataclass(frozen=True)
@@ -179,14 +194,18 @@ class StoppingRule:
     plus what it covers while the command reaches it (`reaction_s`: the position's age
     and the command's way), plus `buffer_m`. It goes again once it could reach its cruise
     speed and still stop short, so that it is not stopped again moments later (no
-    command chatter on the radio link). A stopped vehicle that another one waits for (to
-    pass a point between it and its own limit) creeps closer at `creep_m_s`: stopping
-    short must not make two vehicles wait for each other."""
+    command chatter on the radio link). Until then a stopped vehicle approaches the point
+    at the fastest of `approach_speeds_m_s` from which it can still stop short (so that
+    it is there sooner once the way is free), and one that another vehicle waits for
+    creeps up at `creep_m_s` however short the gap: stopping short must never make two
+    vehicles wait for each other."""
 
     reaction_s: float = 0.6
     buffer_m: float = 1.0
     creep_m_s: float = 0.5
     creep_buffer_m: float = 0.2
+    approach_speeds_m_s: tuple[float, ...] = (1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
+    approach_m: float = 2.0  # the least an approach must gain before it has to stop again
 
     def decide(
         self,
@@ -203,11 +222,31 @@ class StoppingRule:
         if gate == Gate.GO:
             return Gate.STOP if gap_m <= self.needed_m(speed, accel, limits) else Gate.GO
         if gate == Gate.CREEP:
-            needed = self.needed_m(speed, accel, limits, creeping=True)
+            needed = self.needed_m(speed, accel, limits, creeping=self._creeping(speed))
             return Gate.STOP if gap_m <= needed else gate
-        creep = self.creep_m_s
-        room = self.needed_m(creep, 0.0, limits, creeping=True) + limits.change_distance(0.0, creep)
-        return Gate.CREEP if waited_on and speed <= creep and gap_m > room else Gate.STOP
+        approach = self.approach_speed(gap_m, limits, waited_on)
+        return Gate.CREEP if speed <= self.creep_m_s and approach is not None else Gate.STOP
+
+    def approach_speed(self, gap_m: float, limits: CopterLimits, waited_on: bool) -> float | None:
+        """How fast a stopped vehicle approaches a point `gap_m` ahead: the fastest speed
+        it can reach and still stop short (a creep only if another waits for it); None
+        if it must stay where it is."""
+        fitting = [
+            v
+            for v in self.approach_speeds_m_s
+            if v < limits.speed_m_s and gap_m > self._approach_room_m(v, limits) + self.approach_m
+        ]
+        if not fitting and waited_on and gap_m > self._approach_room_m(self.creep_m_s, limits):
+            fitting = [self.creep_m_s]
+        return fitting[-1] if fitting else None
+
+    def _approach_room_m(self, speed: float, limits: CopterLimits) -> float:
+        creeping = self._creeping(speed)
+        return self.needed_m(speed, 0.0, limits, creeping) + limits.change_distance(0.0, speed)
+
+    def _creeping(self, speed: float) -> bool:
+        """Slow enough that a paused mission stops it (ArduCopter pauses anywhere mid-leg)."""
+        return speed <= self.creep_m_s + 0.05
 
     def go_room_m(self, limits: CopterLimits) -> float:
         """Room to speed up to cruise from a stop and still stop short."""

@@ -23,6 +23,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -57,12 +58,12 @@ class PlannedPath:
         last = np.concatenate([first[1:] - 1, [len(points) - 1]])
         return cls(uav_id, xy[first], points[first, 0], points[last, 0], radius_m)
 
-    @property
+    @cached_property
     def s(self) -> Floats:
-        """Distance along the path at each vertex, metres."""
+        """Distance along the path at each vertex, metres (asked for on every tick)."""
         return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.xy, axis=0).T))])
 
-    @property
+    @cached_property
     def length(self) -> float:
         return float(self.s[-1])
 

@@ -52,7 +52,13 @@ def test_the_stopping_rule_stops_in_time_goes_only_with_room_and_creeps_when_wai
     assert rule.decide(Gate.GO, needed + 0.1, 10.0, 0.0, LIMITS, False) == Gate.GO
     assert rule.decide(Gate.GO, needed - 0.1, 10.0, 0.0, LIMITS, False) == Gate.STOP
     assert rule.decide(Gate.GO, needed + 0.1, 10.0, 2.5, LIMITS, False) == Gate.STOP  # speeding up
-    assert rule.decide(Gate.STOP, needed + 1.0, 0.0, 0.0, LIMITS, False) == Gate.STOP  # no chatter
+    # Stopped with some room: it approaches, at a speed it can still stop from, short of
+    # cruise (so that the gate is not reopened and closed again at once)...
+    assert rule.decide(Gate.STOP, needed + 1.0, 0.0, 0.0, LIMITS, False) == Gate.CREEP
+    approach = rule.approach_speed(needed + 1.0, LIMITS, False)
+    assert approach is not None and 1.0 <= approach < LIMITS.speed_m_s
+    # ... and with too little room for any approach it stays (unless another waits for it).
+    assert rule.decide(Gate.STOP, 3.0, 0.0, 0.0, LIMITS, False) == Gate.STOP
     assert rule.decide(Gate.STOP, rule.go_room_m(LIMITS) + 0.1, 0.0, 0.0, LIMITS, False) == Gate.GO
     assert rule.decide(Gate.STOP, 3.0, 0.0, 0.0, LIMITS, True) == Gate.CREEP
     assert rule.decide(Gate.STOP, 3.0, 4.0, 0.0, LIMITS, True) == Gate.STOP  # still slowing

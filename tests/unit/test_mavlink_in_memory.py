@@ -314,3 +314,36 @@ async def test_a_mission_arducopter_will_not_pause_is_braked_and_resumed_in_auto
         assert commands == [(pause, 0, 0), (set_mode, 1, brake), (set_mode, 1, auto)]
     finally:
         await link.close()
+
+
+@pytest.mark.parametrize("climbs", [True, False], ids=["lifting off", "still on the ground"])
+async def test_a_resent_take_off_refused_as_already_flying_is_a_take_off(climbs: bool) -> None:
+    """20 % loss each way loses one command's ACK in five: the first NAV_TAKEOFF lifts the
+    vehicle off, its ACK is lost, and ArduCopter answers the re-sent one FAILED (it is
+    flying already). That is a take-off, not a failure; on the ground it is a failure."""
+    link, peer = await linked(silent)
+    altitude_mm = 1500 if climbs else 0
+
+    def lose_the_first_ack(msg: Any) -> list[Any]:
+        if msg.get_type() != "COMMAND_LONG" or msg.command != mavlink2.MAV_CMD_NAV_TAKEOFF:
+            return []
+        if len(peer.sent("COMMAND_LONG")) == 1:
+            return []  # carried out; its ACK lost on the way
+        position = peer.codec.global_position_int_encode(
+            1000, -353632620, 1491652370, 584000 + altitude_mm, altitude_mm, 0, 0,
+            -100 if climbs else 0, 0,
+        )  # fmt: skip
+        return [peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_FAILED), position]
+
+    peer.reply = lose_the_first_ack
+    policy = CommandPolicy(timeout_s=0.05, retries=2)
+    try:
+        actions = FlightActions(link, command_policy=policy)
+        if climbs:
+            await actions.takeoff(10.0)
+        else:
+            with pytest.raises(CommandFailedError):
+                await actions.takeoff(10.0)
+        assert len(peer.sent("COMMAND_LONG")) == 2
+    finally:
+        await link.close()
