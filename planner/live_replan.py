@@ -140,6 +140,7 @@ def replan_live(
     *,
     now: float,
     positions: Mapping[str, tuple[float, float]] | None = None,
+    progress: Mapping[str, float] | None = None,
     known_objects: Sequence[NewObject] = (),
     settings: PlannerSettings = LIVE_SETTINGS,
 ) -> LiveReplan:
@@ -147,7 +148,10 @@ def replan_live(
 
     `positions` (grid coordinates) are where UAVs are at `now`; by default where their
     trajectory says. Only the replanned UAVs start from them: the others keep their
-    trajectories. `known_objects` are objects reported before, which every path avoids.
+    trajectories. `progress` is where each UAV is on its own trajectory (its plan time)
+    at `now`, by default `now`: a fleet flown by its passing order keeps the plan's order,
+    not its clock, so each UAV's remaining flight starts where it is. `known_objects` are
+    objects reported before, which every path avoids.
     Searches use the `qos` objective whatever `settings.objective` says (a UAV in flight
     must still reach its goal); every random draw comes from `settings.seed`.
     Raises ValueError on input the service should refuse (an object outside the grid).
@@ -155,8 +159,9 @@ def replan_live(
     get_algorithm(settings.algorithm)
     specs = {u.id: u for u in scenario.uavs}
     _validate(scenario, plan, [new_object, *known_objects], now, positions or {})
+    own = _validated_progress(scenario, progress or {})
     new_object, *known_objects = (_plain(o) for o in (new_object, *known_objects))
-    fleet = _remaining(plan, now)
+    fleet = _remaining(plan, now, own)
     blocking = _Blocking.build(
         scenario.blocked(),
         [(c[0], c[1]) for c in plan.non_uav_objects],
@@ -264,15 +269,27 @@ def _window_from(obj: NewObject, now: float) -> tuple[float, float]:
     return obj.window[0] - now, obj.window[1] - now
 
 
-def _remaining(plan: Plan, now: float) -> dict[str, Trajectory]:
-    """What is left of every flight still airborne after `now`, shifted to start at 0."""
+def _validated_progress(scenario: Scenario, progress: Mapping[str, float]) -> dict[str, float]:
+    ids = {u.id for u in scenario.uavs}
+    for uav, t in progress.items():
+        if uav not in ids:
+            raise ValueError(f"progress given for unknown UAV {uav!r}")
+        if not (math.isfinite(t) and t >= 0):
+            raise ValueError(f"progress {t} of {uav!r} must be a finite plan time >= 0 s")
+    return dict(progress)
+
+
+def _remaining(plan: Plan, now: float, own: Mapping[str, float]) -> dict[str, Trajectory]:
+    """What is left of every flight still airborne, from where each UAV is on its own
+    trajectory (`own`, else `now`), shifted to start at 0 (= `now`)."""
     out = {}
     for u in plan.uavs:
         track = Trajectory(np.array(u.trajectory, dtype=float))
-        if track.end_time > now:
-            rest = track.between(now, track.end_time)
+        at = own.get(u.id, now)
+        if track.end_time > at:
+            rest = track.between(at, track.end_time)
             assert rest is not None
-            out[u.id] = _shifted(rest, -now)
+            out[u.id] = _shifted(rest, -at)
     return out
 
 

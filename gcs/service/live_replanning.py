@@ -43,10 +43,12 @@ async def replan_flight(
     turn_radius_m: float,
 ) -> ReplanOutcome:
     """`scenario` and `plan` are as flown (at the flight's speed): the fleet's clock is the
-    plan's."""
+    plan's, and each vehicle's place on its own plan is where its remaining flight starts
+    (flown by the passing order, vehicles are ahead of or behind that clock)."""
     frame = GridFrame.of(scenario)
     now = fleet.plan_time()
     positions = _positions(fleet, frame)
+    progress = {p.uav_id: p.plan_time_s for p in fleet.progress() if p.uav_id in positions}
     result = await asyncio.to_thread(
         replan_live,
         scenario,
@@ -54,6 +56,7 @@ async def replan_flight(
         new_object,
         now=now,
         positions=positions,
+        progress=progress,
         known_objects=known,
     )
     speeds = {u.id: u.speed for u in scenario.uavs}

@@ -276,3 +276,30 @@ async def test_concurrent_requests_on_one_flight_take_turns(gcs: InProcessServic
     kinds = [e["kind"] for e in await flight.events()]
     assert kinds.count("ObjectReported") == 2
     assert await flight.wait_state("landed", "ended", "interrupted") == "landed"
+
+
+# --- 6. the service stops mid-flight -----------------------------------------------------
+
+
+async def test_a_service_stopping_mid_flight_holds_every_vehicle_in_the_air(
+    gcs: InProcessService,
+) -> None:
+    """At cruise speed nothing may fly on unfollowed: the passing order lives in the
+    ground station. A clean stop holds every airborne vehicle where it is, and the flight
+    is `interrupted` when the service is back, for the operator to bring them down."""
+    sim = await _fleet(gcs)
+    flight = await Flight.make(gcs.client, sim)
+    await flight.fly()
+
+    def cruising() -> bool:
+        return all(ground_speed(sim, k) > 2.0 for k in sim.sysids)
+
+    await until(cruising, 60, "every vehicle cruising")
+    await gcs.stop()
+    assert all(sim.state(k).holding for k in sim.sysids), [sim.state(k) for k in sim.sysids]
+    await gcs.start()
+    flight.client = gcs.client
+    row = (await gcs.client.get(f"/flights/{flight.id}")).json()
+    assert row["state"] == "interrupted" and "held where they were" in row["note"], row
+    assert (await flight.post("abort", mode="land")).status_code == 200
+    await flight.wait_state("aborted")

@@ -269,6 +269,33 @@ def test_a_reported_position_is_where_the_new_path_starts() -> None:
     assert_replanned_from_where_it_is(scenario, result, live, uav, at)
 
 
+def test_a_uav_behind_the_fleets_clock_is_replanned_from_where_it_is_on_its_own_plan() -> None:
+    """Flown by the passing order, a UAV may be behind the plan's clock: an object ahead
+    of it, on a stretch the clock alone says it has passed, still touches it."""
+    scenario, result = planned("case-6")
+    own = 1.0
+    uav, cell = a_cell_only_on(scenario, result, own)
+    spec = next(u for u in scenario.uavs if u.id == uav)
+    points = next(u.trajectory for u in result.uavs if u.id == uav)
+    end = points[-1][0]
+    now = next(  # the fleet's clock: once this UAV's plan has gone past the cell
+        t
+        for t in np.arange(own, end, 0.05)
+        if cell not in cells_touched(points, spec.radius, t, end)
+    )
+    by_clock = replan_live(scenario, result, NewObject(cell), now=now, settings=SETTINGS)
+    assert uav not in by_clock.touched
+    at = track(points, np.array([own]))[0]
+    live = replan_live(
+        scenario, result, NewObject(cell), now=now, positions={uav: tuple(at)},
+        progress={uav: own}, settings=SETTINGS,
+    )  # fmt: skip
+    assert uav in live.touched and uav in live.changed
+    assert_replanned_from_where_it_is(scenario, result, live, uav, at)
+    with pytest.raises(ValueError, match="progress"):
+        replan_live(scenario, result, NewObject(cell), now=now, progress={uav: math.nan})
+
+
 @pytest.mark.parametrize("there", ["for good", "while it passes", "after it passed"])
 def test_known_objects_are_part_of_the_check(there: str) -> None:
     scenario, result, now, uav, cell, enter, leave = window_cases()

@@ -32,7 +32,7 @@ from gcs.service.flights.book import FlightBook
 from gcs.service.flights.slot import Preempted
 from gcs.service.live_replanning import replan_flight
 from gcs.service.metrics import ServiceMetrics
-from gcs.service.states import AIRBORNE, FlightState, StateConflict
+from gcs.service.states import FlightState, StateConflict
 from gcs.service.storage import PlanRepository, ScenarioRepository, VehicleRepository
 from gcs.service.storage.tables import FlightRow, UploadRow
 from gcs.service.vehicle_registry import VehicleRegistry
@@ -44,6 +44,8 @@ from planner.trajectory import Trajectory
 log = logging.getLogger("mvo_gcs.flights")
 F = FlightState
 TRACK_PERIOD_S = 1.0  # wall seconds between stored positions (the flown tracks)
+FOLLOWED = frozenset({F.STARTING, F.FLYING, F.PAUSED})
+"""States in which the vehicles fly the plan, in its order, as the service follows them."""
 HOLD_ON_STOP_S = 3.0  # how long a stopping service tries to hold each airborne vehicle
 
 
@@ -403,7 +405,7 @@ class FlightService:
             if active is None:
                 continue
             active.fleet.close()
-            if await self.book.state(flight_id) in AIRBORNE:
+            if await self.book.state(flight_id) in FOLLOWED:  # not landing or going home
                 held = await _hold_airborne(active)
                 await self.to_interrupted(
                     flight_id, f"the ground station stopped; held where they were: {held}"

@@ -1,10 +1,10 @@
 """A plan's MAVLink missions: the items per UAV, and QGroundControl / ArduPilot files.
 
-They are the missions a flight of the plan would upload, paced the same way (the whole
-plan slowed so no leg is faster than `max_speed_m_s`, waypoints accepted within
-`turn_radius_m`), so that a file loaded into QGroundControl or MAVProxy flies as safely
-as the service would fly it. What a flight actually uploaded is at
-`/flights/{id}/missions/{uav}.plan`.
+They are the missions a flight of the plan would upload, timed the same way (the plan
+at `max_speed_m_s` for its fastest UAV, corners within `turn_radius_m`). What a file
+cannot carry is the passing order, which only the ground station keeps while they fly:
+a `.plan` says in its notes whom its UAV must let pass first. What a flight actually
+uploaded is at `/flights/{id}/missions/{uav}.plan`.
 """
 
 from __future__ import annotations
@@ -128,7 +128,8 @@ async def get_missions(
 async def download_qgc_plan(
     plan_id: str, uav_id: str, plans: PlansDep, scenarios: ScenariosDep, options: Options
 ) -> PlainTextResponse:
-    """The UAV's mission as a QGroundControl `.plan` file, paced as a flight would fly it."""
+    """The UAV's mission as a QGroundControl `.plan` file, as a flight would fly it, with
+    notes on the passing order it cannot keep alone."""
     text = plan_text(*await _one(plans, scenarios, plan_id, uav_id, options))
     return _attachment(text, f"{uav_id}.plan", "application/json")
 
@@ -147,8 +148,8 @@ async def download_qgc_plan(
 async def download_waypoints(
     plan_id: str, uav_id: str, plans: PlansDep, scenarios: ScenariosDep, options: Options
 ) -> PlainTextResponse:
-    """The UAV's mission as a `QGC WPL 110` file (Mission Planner, MAVProxy), paced as a
-    flight would fly it."""
+    """The UAV's mission as a `QGC WPL 110` file (Mission Planner, MAVProxy), as a flight
+    would fly it (the format has no room for notes: see the `.plan`)."""
     mission, _ = await _one(plans, scenarios, plan_id, uav_id, options)
     text = waypoints_text(mission)
     return _attachment(text, f"{uav_id}.waypoints", "text/plain")

@@ -511,8 +511,12 @@ function updateVehicleRow(vehicleId, v) {
   c.hdg.textContent = v.heading_deg == null ? "–" : `${fmt(v.heading_deg, 0)}°`;
   c.item.textContent = v.mission_seq == null ? "–" : `${v.mission_seq}/${v.mission_total ?? "?"}`;
   c.lag.textContent = p.lag_s == null ? "–" : `${fmt(p.lag_s, 1)} s`;
-  const flags = [v.armed ? "armed" : "", ...["paused", "held", "withdrawn", "holding", "landing", "finished"].filter((k) => p[k])];
+  // Who waits for whom: the passing order stops (or edges on) a vehicle until another
+  // has left the stretch they share.
+  const waits = p.waits_for ? `waits for ${p.waits_for}` : "";
+  const flags = [v.armed ? "armed" : "", waits, ...["held", "withdrawn", "landing", "finished"].filter((k) => p[k])];
   c.flags.textContent = flags.filter(Boolean).join(" ");
+  c.flags.classList.toggle("waiting", Boolean(waits));
   entry.row.dataset.online = String(Boolean(v.online));
 }
 
