@@ -16,6 +16,8 @@ import asyncio
 import time
 
 DEFAULT_STEP_S = 0.02
+STEP_EPSILON = 1e-6
+"""Of a step: a wake-up at a step's due time counts that step, float rounding or not."""
 MAX_STEPS_PER_TICK = 5
 """Steps run before the links are served again (0.1 simulated s): beyond that, slip."""
 
@@ -58,16 +60,21 @@ class SimClock:
             self.start(wall_now)
         wall = loop_time() if wall_now is None else wall_now
         start = self._wall_start if self._wall_start is not None else wall
-        target = int((wall - start) * self.speedup / self.step_s) - self._slipped_steps
+        elapsed = (wall - start) * self.speedup / self.step_s
+        target = int(elapsed + STEP_EPSILON) - self._slipped_steps
         due = max(0, target - self.steps)
         if due > MAX_STEPS_PER_TICK:
             self._slipped_steps += due - MAX_STEPS_PER_TICK
             due = MAX_STEPS_PER_TICK
         return due
 
-    def wall_until_next_step(self) -> float:
+    def wall_until_next_step(self, wall_now: float | None = None) -> float:
         """Real seconds until the next step falls due (0 if already due)."""
-        return self.step_s / self.speedup
+        if self._wall_start is None:
+            return self.step_s / self.speedup
+        wall = loop_time() if wall_now is None else wall_now
+        due_at = (self.steps + 1 + self._slipped_steps) * self.step_s / self.speedup
+        return max(0.0, self._wall_start + due_at - wall)
 
     def advance(self) -> float:
         self.steps += 1

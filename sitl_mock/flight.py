@@ -290,10 +290,13 @@ class FlightController:
         return ACCEPTED
 
     def change_speed(self, speed: float) -> int:
+        """DO_CHANGE_SPEED: the leg being flown changes speed at once (AC_WPNav::
+        set_speed_NE re-plans it), and so do the legs after it."""
         if not speed > 0 or not math.isfinite(speed):
             return FAILED
         self._cruise_override = speed
         self.apply_limits()
+        self.body.set_cruise(self.limits().cruise_speed)
         return ACCEPTED
 
     # -- time -------------------------------------------------------------------------------

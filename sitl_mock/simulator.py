@@ -265,6 +265,22 @@ class Simulator:
     def state(self, sysid: int) -> VehicleState:
         return self._call(self._vehicle(sysid).state)
 
+    def local_positions(self) -> dict[int, tuple[float, float, float]]:
+        """Every vehicle's east and north metres in the fleet's frame and its height above
+        home: the simulator's truth, without a geodetic conversion (cheap to poll)."""
+
+        def positions() -> dict[int, tuple[float, float, float]]:
+            pos = self._fleet.pos.tolist()
+            return {
+                sysid: (pos[k][0], pos[k][1], pos[k][2]) for k, sysid in enumerate(self._vehicles)
+            }
+
+        return self._call(positions)
+
+    def to_local(self, lat: float, lon: float) -> tuple[float, float]:
+        """A place in the frame of `local_positions` (east, north metres)."""
+        return self._frame.to_local(lat, lon)
+
     def mission(self, sysid: int, mission_type: int = 0) -> list[MissionItem]:
         return self._call(self._vehicle(sysid).mission, mission_type)
 
