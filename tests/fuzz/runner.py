@@ -20,16 +20,19 @@ import itertools
 import json
 import logging
 import math
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import httpx
 
-from gcs.mission.geodesy import GridFrame, TangentPlane
+from gcs.mission.geodesy import GridFrame, distance_m
 from gcs.service import planning_pool
 from gcs.service.states import FLIGHT_TRANSITIONS, FlightState
+from planner.scenario import Scenario
 from sitl_mock import Simulator
+from sitl_mock.modes import FlightMode
 from sitl_mock.virtual_time import VirtualTimeLoop
 from tests.fuzz.cases import LATE_TAKE_OFF_S, Action, FuzzCase
 from tests.inprocess.service import InProcessService, until
@@ -49,6 +52,8 @@ _EFFECTS = {
 mode, or "stopped" (told to hold where it is, or down); unless a later command to it came
 first."""
 ANSWER_WITHIN_S = 1.0
+ARRIVED_M = 1.0  # within this of its goal, a vehicle has arrived
+GOAL_RADIUS_M = 2.0  # ArduCopter's WP_RADIUS_M: a mission's goal is reached within it
 WATCH_EVERY_S = 0.1
 END_WITHIN_S = 900.0
 REABORT_S = 300.0
@@ -64,6 +69,9 @@ class Report:
     violations: list[str] = field(default_factory=list)
     outcome: str = ""
     min_separation_m: float = math.inf
+    landing_error_m: float = 0.0  # the furthest any vehicle came down from its goal
+    mission_s: float | None = None  # the synchronised start to the last arrival over a goal
+    timed_s: float | None = None  # the same, as the flight's timing has it
     two_r_m: float = 0.0
     virtual_s: float = 0.0
     notes: list[str] = field(default_factory=list)
@@ -84,11 +92,23 @@ class Report:
             f"  ended {self.outcome or '?'} after {self.virtual_s:.0f} virtual s; closest "
             f"{self.min_separation_m:.2f} m (2R {self.two_r_m:.2f} m)",
         ]
+        if self.mission_s is not None and self.timed_s:
+            lines.append(
+                f"  mission {self.mission_s:.1f} s against {self.timed_s:.1f} s timed "
+                f"({self.mission_s / self.timed_s:.2f}x); landed within "
+                f"{self.landing_error_m:.2f} m of the goals"
+            )
         lines += [f"  - {v}" for v in self.violations]
         lines += [f"  . {n}" for n in self.notes]
         if self.violations:
             lines.append(f"  replay: python -m tests.fuzz --seed {self.case.seed}")
         return "\n".join(lines)
+
+
+def fly_seed(seed: int, max_uavs: int = 6) -> Report:
+    """The seed's flight, in a data directory of its own (removed afterwards)."""
+    with tempfile.TemporaryDirectory(prefix=f"fuzz-{seed}-") as tmp:
+        return run(FuzzCase.draw(seed, max_uavs), Path(tmp) / "data")
 
 
 def run(case: FuzzCase, data_dir: Path) -> Report:
@@ -145,6 +165,7 @@ class Flight:
         self.held: set[int] = set()  # held one by one by the operator, not continued yet
         self.live: list[dict[str, Any]] = []
         self.due: list[_Due] = []  # effects of commands, not seen yet
+        self.arrived: dict[int, float] = {}  # sysid: loop time over its goal
         self._sent_at = 0.0
 
     async def fly(self) -> Report:
@@ -177,7 +198,7 @@ class Flight:
         await self.service.start()
         if not await self._make(scenario):
             return
-        watching = asyncio.ensure_future(self._watch(GridFrame.of(scenario)))
+        watching = asyncio.ensure_future(self._watch(scenario))
         listening = asyncio.ensure_future(self._listen())
         try:
             await self._operate()
@@ -187,6 +208,9 @@ class Flight:
                 task.cancel()
             await asyncio.gather(watching, listening, return_exceptions=True)
         await self._check_records()
+        if self.report.outcome == "landed":
+            self._check_landings(scenario)
+            self._time_the_mission()
         self.report.events = [m for m in self.live if m.get("kind") not in (None, "Progress")]
 
     # --- the flight through the API ---------------------------------------------------
@@ -320,6 +344,29 @@ class Flight:
                 waiting.append(due)
         self.due = waiting
 
+    def _time_the_mission(self) -> None:
+        """From the synchronised start to the last arrival, beside the timed flight's."""
+        assert self.sim is not None
+        started = [m for m in self.live if m.get("kind") == "MissionsStarted"]
+        if started and set(self.arrived) == set(self.sim.sysids):
+            self.report.mission_s = max(self.arrived.values()) - started[-1]["at"]
+            self.report.timed_s = started[-1]["timed_duration_s"]
+
+    def _check_landings(self, scenario: Scenario) -> None:
+        """A `landed` flight has every vehicle down within the waypoint radius of its goal
+        (by the simulator's truth)."""
+        assert self.sim is not None
+        frame = GridFrame.of(scenario)
+        for sysid, uav in zip(self.sim.sysids, scenario.uavs, strict=True):
+            state = self.sim.state(sysid)
+            lat, lon = frame.to_geodetic(*uav.goal)
+            miss = distance_m(state.lat, state.lon, float(lat), float(lon))
+            self.report.landing_error_m = max(self.report.landing_error_m, miss)
+            if miss > GOAL_RADIUS_M or state.armed:
+                self.report.violations.append(
+                    f"{uav.id} came down {miss:.2f} m from its goal (armed: {state.armed})"
+                )
+
     async def _until_ended(self) -> None:
         """Let go of what the operator holds and wait for the end; after a restart
         (interrupted), or when a flight held after its abort hovers on, abort with LAND, as
@@ -349,17 +396,23 @@ class Flight:
 
     # --- watching ---------------------------------------------------------------------
 
-    async def _watch(self, frame: GridFrame) -> None:
+    async def _watch(self, scenario: Scenario) -> None:
         """The simulator's truth every 0.1 s: no two airborne vehicles closer than 2R."""
         assert self.sim is not None
-        plane = TangentPlane(frame.lat0, frame.lon0, frame.alt0)
-        two_r = self.report.two_r_m
+        sim, two_r = self.sim, self.report.two_r_m
+        frame = GridFrame.of(scenario)
+        goals = {}
+        for sysid, uav in zip(sim.sysids, scenario.uavs, strict=True):
+            lat, lon = frame.to_geodetic(*uav.goal)
+            goals[sysid] = sim.to_local(float(lat), float(lon))
         while True:
-            states = [self.sim.state(k) for k in self.sim.sysids]
+            self._note_arrivals(goals)
             up = {
-                s.sysid: plane.east_north(s.lat, s.lon)
-                for s in states
-                if s.alt > 1.0 and s.sysid not in self.sent_home and s.mode != "RTL"
+                sysid: (east, north)
+                for sysid, (east, north, alt) in sim.local_positions().items()
+                if alt > 1.0
+                and sysid not in self.sent_home
+                and sim.vehicle(sysid).flight.mode != FlightMode.RTL
             }
             for (a, pa), (b, pb) in itertools.combinations(sorted(up.items()), 2):
                 gap = math.hypot(pa[0] - pb[0], pa[1] - pb[1])
@@ -371,6 +424,15 @@ class Flight:
                     )
             self._check_effects()
             await asyncio.sleep(WATCH_EVERY_S)
+
+    def _note_arrivals(self, goals: dict[int, tuple[float, float]]) -> None:
+        """When each vehicle first comes within ARRIVED_M of its goal (the simulator's truth)."""
+        assert self.sim is not None
+        now = asyncio.get_running_loop().time()
+        for sysid, (east, north, _) in self.sim.local_positions().items():
+            gx, gy = goals[sysid]
+            if sysid not in self.arrived and math.hypot(east - gx, north - gy) < ARRIVED_M:
+                self.arrived[sysid] = now
 
     async def _listen(self) -> None:
         """What the flight tells its live listeners (kept to compare with storage), from

@@ -7,7 +7,7 @@ import asyncio
 import contextlib
 from collections.abc import AsyncIterator, Awaitable, Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, TypeVar, overload
 
 import httpx
 from fastapi import FastAPI
@@ -86,9 +86,17 @@ class InProcessService:
             yield ws
 
 
+@overload
 async def until(
-    condition: Callable[[], T | Awaitable[T]], timeout: float, what: str, every: float = 0.1
-) -> T:
+    condition: Callable[[], Awaitable[T]], timeout: float, what: str, every: float = 0.1
+) -> T: ...
+
+
+@overload
+async def until(condition: Callable[[], T], timeout: float, what: str, every: float = 0.1) -> T: ...
+
+
+async def until(condition: Callable[[], Any], timeout: float, what: str, every: float = 0.1) -> Any:
     """The first truthy value of `condition()`, looked at every `every` seconds of the
     loop's (virtual) clock; AssertionError after `timeout` of them."""
     loop = asyncio.get_running_loop()
@@ -98,7 +106,7 @@ async def until(
         if asyncio.iscoroutine(value) or isinstance(value, asyncio.Future):
             value = await value
         if value:
-            return value  # type: ignore[return-value]
+            return value
         if loop.time() > deadline:
             raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
         await asyncio.sleep(every)

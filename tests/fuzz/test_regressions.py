@@ -1,0 +1,30 @@
+"""Every flight the fuzzer once failed on, flown again: each seed is a defect fixed.
+
+The seed draws the whole flight (tests/fuzz/cases.py), so these replay exactly what
+failed, on today's code; `python -m tests.fuzz --seed N --trace` shows one in full."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.fuzz.runner import fly_seed
+
+pytestmark = [pytest.mark.slow, pytest.mark.fuzz]
+
+FOUND = {
+    1: "a vehicle stopped near its goal for a leader was never let go again",
+    4: "the mock's pause and BRAKE took far longer to stop than ArduCopter's",
+    5: "the same, from 5 m/s",
+    6: "(the fuzzer's own) a command's effect looked for after a later one had undone it",
+    8: "progress was projected onto the wrong part of a path that passes near itself",
+    12: "(the fuzzer's own) a hold during take-off looked for in the mission's state only",
+    25: "the object stored for a live replan was not the object the operator was told of",
+    28: "LAND during lift-off left the mock climbing for ever",
+    38: "an abort did not reach the vehicles that came back online after a restart",
+}
+
+
+@pytest.mark.parametrize("seed", sorted(FOUND))
+def test_a_flight_that_once_failed_flies_clean(seed: int) -> None:
+    report = fly_seed(seed)
+    assert not report.violations, f"{FOUND[seed]}\n{report.summary()}"
