@@ -70,6 +70,13 @@ class Route:
         length = np.hypot(*np.diff(self.xy, axis=0).T)
         return length / (self.arrive[1:] - self.arrive[:-1] - self.hold[:-1])
 
+    def without_holds(self) -> Route:
+        """The same places, every leg at its own speed and no hover on the way: for a
+        flight that keeps the plan's passing order rather than its clock, where a plan's
+        wait is the passing order's to make, not a slower leg's."""
+        moving = np.diff(self.arrive) - self.hold[:-1]
+        return Route(self.xy, np.concatenate([[self.arrive[0]], moving]).cumsum(), 0 * self.hold)
+
     def whole_second_holds(self) -> Route:
         """The route for an autopilot that holds for whole seconds only (ArduCopter keeps
         NAV_WAYPOINT's hold as an integer): each hold rounded to the nearest second, the
@@ -149,8 +156,9 @@ def build_missions(
 
     `altitude_m` is metres above home, one for all or one per UAV id. An infeasible plan
     is refused unless `allow_infeasible` (e.g. to export it for inspection). Without
-    `holds`, the plan's waits are left out (the ground station's passing order makes the
-    vehicle wait where, and as long as, another is in its way).
+    `holds`, the plan's waits are left out and every leg is flown at its own speed (the
+    ground station's passing order makes the vehicle wait where, and as long as, another
+    is in its way).
     """
     if not plan.feasible and not allow_infeasible:
         raise ValueError(f"plan of {plan.scenario!r} is infeasible: it is not safe to fly")
@@ -197,7 +205,7 @@ def build_mission(
         raise ValueError(f"acceptance_radius_m must not be negative, got {acceptance_radius_m}")
     route = Route.of(trajectory)
     if not holds:
-        route = Route(route.xy, route.arrive, np.zeros(len(route)))
+        route = route.without_holds()
     elif autopilot == Autopilot.ARDUPILOT:
         route = route.whole_second_holds()
     lat, lon = frame.to_geodetic(route.xy[:, 0], route.xy[:, 1])
