@@ -69,12 +69,20 @@ class UAVSpec(_Strict):
         description="R in cells; below half a cell so that a UAV fits inside its cell",
     )
 
+    @field_validator("speed", "radius", mode="before")
+    @classmethod
+    def _no_strings(cls, value: object) -> object:
+        """JSON `"1"` is not a number here, though pydantic would read it as 1.0."""
+        if isinstance(value, str):
+            raise ValueError("expected a number, not a string")
+        return value
+
 
 class RandomObjects(_Strict):
     """`{"random": K, "seed": S}`: K non-UAV objects placed on free cells, as the paper does."""
 
     random: int = Field(strict=True, ge=0, le=MAX_RANDOM_OBJECTS)
-    seed: int = Field(default=0, strict=True)
+    seed: int = Field(default=0, strict=True, ge=0, le=2**32 - 1)
 
 
 class Scenario(_Strict):

@@ -91,6 +91,72 @@ def test_a_slow_body_times_out(service: ServiceProcess) -> None:
     assert status(raw(service, request)) == 408  # 1 byte of 1000, then nothing
 
 
+# --- bodies an unauthenticated or careless client can send (issue 28) --------------------
+
+CASE = {
+    "name": "two",
+    "grid": {"width": 6, "height": 6},
+    "uavs": [{"id": "uav1", "start": [0, 0], "goal": [5, 5]}],
+}
+
+
+def post_scenario(service: ServiceProcess, body: bytes | dict) -> httpx.Response:
+    headers = {"Authorization": f"Bearer {TOKEN}", "Content-Type": "application/json"}
+    if isinstance(body, dict):
+        return httpx.post(f"{service.url}/scenarios", json=body, headers=headers)
+    return httpx.post(f"{service.url}/scenarios", content=body, headers=headers)
+
+
+def test_a_number_too_large_for_a_float_is_422_naming_it(service: ServiceProcess) -> None:
+    """`1e400` parses to infinity without passing a NaN check: it was a 500."""
+    body = b'{"name": "x", "grid": {"width": 6, "height": 6}, "uavs": [{"id": "uav1", '
+    body += b'"start": [0, 0], "goal": [5, 5], "speed": 1e400}]}'
+    answer = post_scenario(service, body)
+    assert answer.status_code == 422, answer.text
+    assert "1e400 is not a finite number" in answer.text
+    assert not service.problems()
+
+
+@pytest.mark.parametrize("method", ["POST", "GET"])
+def test_json_nested_a_thousand_deep_is_refused_or_ignored(
+    service: ServiceProcess, method: str
+) -> None:
+    """Nested ~1,000 deep, a body overflowed the parser's recursion (a 500, a traceback
+    in the log), even on GET /health/live: 400 where a body is read, ignored on a GET."""
+    deep = b"[" * 1000 + b"]" * 1000
+    if method == "POST":
+        answer = post_scenario(service, deep)
+        assert answer.status_code == 400 and "nested deeper than 32" in answer.text, answer.text
+    else:
+        answer = httpx.request(
+            "GET", f"{service.url}/health/live", content=deep,
+            headers={"Content-Type": "application/json"},
+        )  # fmt: skip
+        assert answer.status_code == 200, answer.text
+    assert not service.problems()
+
+
+@pytest.mark.parametrize(
+    ("where", "value", "says"),
+    [("speed", "1", "not a string"), ("radius", "0.3", "not a string")],
+)
+def test_a_number_sent_as_a_string_is_422(
+    service: ServiceProcess, where: str, value: str, says: str
+) -> None:
+    uav = {**CASE["uavs"][0], where: value}  # type: ignore[index]
+    answer = post_scenario(service, {**CASE, "uavs": [uav]})
+    assert answer.status_code == 422 and says in answer.text, answer.text
+    assert answer.json()["detail"][0]["loc"][-1] == where
+
+
+def test_a_negative_seed_of_random_objects_is_422(service: ServiceProcess) -> None:
+    answer = post_scenario(service, {**CASE, "non_uav_objects": {"random": 2, "seed": -1}})
+    assert answer.status_code == 422, answer.text
+    assert any(e["loc"][-1] == "seed" for e in answer.json()["detail"]), answer.text
+    fine = post_scenario(service, {**CASE, "non_uav_objects": {"random": 2, "seed": 7}})
+    assert fine.status_code == 201, fine.text
+
+
 # --- a clean end ------------------------------------------------------------------------
 
 

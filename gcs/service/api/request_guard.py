@@ -7,8 +7,12 @@
 3. its body is at most `max_bytes` (413, whether announced or chunked) and arrives within
    `body_timeout_s` (408: a slow client cannot hold a connection for ever);
 4. a JSON body has only finite numbers and well-formed strings (422 naming the field:
-   NaN, Infinity and lone surrogates are valid to Python's parser but poison a mission
-   and cannot be echoed back as JSON).
+   NaN, Infinity, a number too large for a float such as 1e400, and lone surrogates are
+   valid to Python's parser but poison a mission and cannot be echoed back as JSON), and
+   is nested at most `MAX_JSON_DEPTH` deep (400: deeper has no use here, and ~1,000 deep
+   overflows the parser's recursion);
+5. a request that cannot change state (GET, HEAD, OPTIONS) has its body read, within the
+   same bounds, and dropped unparsed: nothing the service answers depends on one.
 
 Then the body, read once, is handed to the application unchanged.
 """
@@ -17,13 +21,19 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
+import re
 import secrets
 from collections.abc import Iterator
 from typing import Any
 
+import numpy as np
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 MUTATING = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+MAX_JSON_DEPTH = 32
+JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+OPENING, CLOSING = np.frombuffer(b"[{", dtype=np.uint8), np.frombuffer(b"]}", dtype=np.uint8)
 Path = tuple[str | int, ...]
 
 
@@ -59,7 +69,9 @@ class RequestGuard:
             if scope["method"] in MUTATING:
                 self._check_token(headers)
             body = await self._read_body(headers, receive)
-            if body and "json" in headers.get("content-type", "json"):
+            if scope["method"] not in MUTATING:
+                body = b""  # dropped unparsed
+            elif body and "json" in headers.get("content-type", "json"):
                 check_json(body)
         except Refusal as refusal:
             await _refuse(scope, send, refusal)
@@ -124,8 +136,9 @@ def check_json(body: bytes) -> None:
         text = body.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise Refusal(400, f"the body is not UTF-8: {exc}") from None
+    _check_depth(text)
     try:
-        document = json.loads(text, parse_constant=_refuse_constant)
+        document = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite)
     except _NonFinite as exc:
         raise Refusal(422, [_problem(("body",), f"{exc} is not a finite number")]) from None
     except ValueError:
@@ -140,6 +153,22 @@ class _NonFinite(ValueError):
 
 def _refuse_constant(name: str) -> None:
     raise _NonFinite(name)
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):  # 1e400: a literal too large for a float
+        raise _NonFinite(text)
+    return value
+
+
+def _check_depth(text: str) -> None:
+    """400 for arrays and objects nested deeper than MAX_JSON_DEPTH, counted before
+    parsing (strings left out), so that the parser never recurses far."""
+    brackets = np.frombuffer(JSON_STRING.sub("", text).encode(), dtype=np.uint8)
+    step = np.isin(brackets, OPENING).astype(np.int64) - np.isin(brackets, CLOSING)
+    if step.size and int(np.cumsum(step).max()) > MAX_JSON_DEPTH:
+        raise Refusal(400, f"the JSON body is nested deeper than {MAX_JSON_DEPTH} levels")
 
 
 def _bad_values(value: Any, path: Path) -> Iterator[tuple[Path, str]]:
