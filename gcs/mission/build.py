@@ -71,11 +71,14 @@ class Route:
         return length / (self.arrive[1:] - self.arrive[:-1] - self.hold[:-1])
 
     def without_holds(self) -> Route:
-        """The same places, every leg at its own speed and no hover on the way: for a
+        """The same path, every leg at its own speed and no hover on the way: for a
         flight that keeps the plan's passing order rather than its clock, where a plan's
-        wait is the passing order's to make, not a slower leg's."""
+        wait is the passing order's to make, not a slower leg's. Places where it hovered
+        on a straight line go too: ArduCopter plans only the leg after the next waypoint,
+        so waypoints 1 m apart held it to about 1.7 m/s on real SITL."""
         moving = np.diff(self.arrive) - self.hold[:-1]
-        return Route(self.xy, np.concatenate([[self.arrive[0]], moving]).cumsum(), 0 * self.hold)
+        arrive = np.concatenate([[self.arrive[0]], moving]).cumsum()
+        return Route(self.xy, arrive, 0 * self.hold)._merged()
 
     def whole_second_holds(self) -> Route:
         """The route for an autopilot that holds for whole seconds only (ArduCopter keeps
@@ -98,19 +101,22 @@ class Route:
     @classmethod
     def of(cls, trajectory: ArrayLike) -> Route:
         """The route of a plan trajectory, `[t, x, y]` rows."""
-        stops = cls._stops(np.asarray(trajectory, dtype=float).reshape(-1, 3))
-        if len(stops) == 1:
-            return stops
-        speed = stops.speeds
-        hover_or_new_speed = (stops.hold[1:-1] > 0) | ~np.isclose(
+        return cls._stops(np.asarray(trajectory, dtype=float).reshape(-1, 3))._merged()
+
+    def _merged(self) -> Route:
+        """Collinear places flown at one speed without a hover between them are one leg."""
+        if len(self) == 1:
+            return self
+        speed = self.speeds
+        hover_or_new_speed = (self.hold[1:-1] > 0) | ~np.isclose(
             speed[:-1], speed[1:], rtol=SPEED_RTOL, atol=0.0
         )
-        breaks = np.concatenate([[0], np.flatnonzero(hover_or_new_speed) + 1, [len(stops) - 1]])
-        runs = [stops._merged_run(a, b) for a, b in itertools.pairwise(breaks)]
-        return cls(
-            np.concatenate([stops.xy[:1], *(r.xy[1:] for r in runs)]),
-            np.concatenate([stops.arrive[:1], *(r.arrive[1:] for r in runs)]),
-            np.concatenate([stops.hold[:1], *(r.hold[1:] for r in runs)]),
+        breaks = np.concatenate([[0], np.flatnonzero(hover_or_new_speed) + 1, [len(self) - 1]])
+        runs = [self._merged_run(a, b) for a, b in itertools.pairwise(breaks)]
+        return Route(
+            np.concatenate([self.xy[:1], *(r.xy[1:] for r in runs)]),
+            np.concatenate([self.arrive[:1], *(r.arrive[1:] for r in runs)]),
+            np.concatenate([self.hold[:1], *(r.hold[1:] for r in runs)]),
         )
 
     @classmethod

@@ -147,21 +147,45 @@ def speed_profile(
     make every later corner and stop at the end: (s, v) knots, v = 0 at both ends and
     where `stops` (a mask over the vertices) says the autopilot comes to rest.
 
-    A backward pass from the end: the speed at a vertex is bounded by its corner, by the
-    legs on either side, and by what the slow-down to the next vertex's bound allows in
-    the leg between (jerk-limited)."""
+    The waypoints are the vertices where the path turns or the speed changes (a mission
+    leaves the others out). A waypoint's speed is bounded by its corner, by the legs on
+    either side, by the waypoint after next (ArduCopter plans its S-curve one waypoint
+    ahead only, so it must be able to stop there: waypoints 1 m apart held it to
+    1.7 m/s), and, in a backward pass, by what slowing down to the next waypoint's bound
+    allows in between (jerk-limited). A vertex between two waypoints is bounded by its
+    legs and by slowing down to the next waypoint and stopping at the one after."""
     n = len(s_vertices)
     bound = np.zeros(n)
     if n < 2:
         return s_vertices.copy(), bound
+    waypoint = _waypoints(leg_speeds, turns, stops)
+    index = np.flatnonzero(waypoint)
+    nxt = index[np.minimum(np.searchsorted(index, np.arange(n), side="right"), len(index) - 1)]
+    after = index[np.minimum(np.searchsorted(index, nxt, side="right"), len(index) - 1)]
     corners = np.array([limits.corner_speed(a) for a in turns])
     bound[1:-1] = np.minimum(np.minimum(corners, leg_speeds[:-1]), leg_speeds[1:])
     if stops is not None:
         bound[stops] = 0.0
-    for k in range(n - 2, 0, -1):
-        room = s_vertices[k + 1] - s_vertices[k]
-        bound[k] = min(bound[k], entry_speed_for(room, bound[k + 1], limits))
+    for k in index[-2:0:-1]:  # the waypoints, backwards
+        stop_at = entry_speed_for(s_vertices[nxt[k]] - s_vertices[k], 0.0, limits)
+        slow_to = entry_speed_for(s_vertices[nxt[k]] - s_vertices[k], bound[nxt[k]], limits)
+        bound[k] = min(bound[k], stop_at, slow_to)
+    for k in np.flatnonzero(~waypoint):
+        stop_at = entry_speed_for(s_vertices[after[k]] - s_vertices[k], 0.0, limits)
+        slow_to = entry_speed_for(s_vertices[nxt[k]] - s_vertices[k], bound[nxt[k]], limits)
+        bound[k] = min(bound[k], stop_at, slow_to)
     return s_vertices.copy(), bound
+
+
+def _waypoints(leg_speeds: Floats, turns: Floats, stops: Floats | None) -> Floats:
+    """Which vertices a mission keeps: the ends, turns, speed changes and stops."""
+    waypoint = np.ones(len(leg_speeds) + 1, dtype=bool)
+    straight = np.abs(turns) < 1e-6
+    same_speed = np.isclose(leg_speeds[:-1], leg_speeds[1:], rtol=1e-4, atol=0.0)
+    waypoint[1:-1] = ~(straight & same_speed)
+    if stops is not None:
+        waypoint |= stops
+    return waypoint
 
 
 def entry_speed_for(distance: float, exit_speed: float, limits: CopterLimits) -> float:

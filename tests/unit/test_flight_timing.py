@@ -14,7 +14,14 @@ from hypothesis import strategies as st
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.flight_plan import UnsafeSpeed, flight_plan
 from gcs.mission.flight_timing import _Vehicle, fly
-from gcs.mission.motion import CopterLimits, Gate, StoppingRule
+from gcs.mission.motion import (
+    CopterLimits,
+    Gate,
+    StoppingRule,
+    entry_speed_for,
+    speed_profile,
+    turn_angles,
+)
 from gcs.mission.passing_order import PassingOrder, PlannedPath
 from planner.cases import load_case
 from planner.pipeline import PlannerSettings, plan
@@ -44,6 +51,21 @@ def test_sharper_corners_are_taken_slower_and_a_straight_line_not_at_all() -> No
     speeds = [LIMITS.corner_speed(math.radians(deg)) for deg in (0, 15, 45, 90, 135)]
     assert speeds[0] == math.inf
     assert all(a > b for a, b in itertools.pairwise(speeds))
+
+
+def test_a_copter_is_only_as_fast_as_it_can_stop_at_the_waypoint_after_next() -> None:
+    """ArduCopter plans its S-curve one waypoint ahead: on a zig-zag of 2 m legs it must be
+    able to stop 2 m on at every corner, however gentle; on a straight line of collinear
+    vertices (not waypoints: a mission leaves them out) nothing holds it back."""
+    zigzag = np.array([[0.0, 0.0], *([2.0 * k, 0.1 * (k % 2)] for k in range(1, 30))])
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(zigzag, axis=0).T))])
+    legs = np.full(len(s) - 1, 10.0)
+    _, bound = speed_profile(s, legs, turn_angles(zigzag), LIMITS)
+    most = entry_speed_for(float(s[2] - s[1]), 0.0, LIMITS)
+    assert most < 4.0 and bound.max() == pytest.approx(most, rel=0.05)
+    straight = np.column_stack([np.arange(30) * 2.0, np.zeros(30)])
+    _, free = speed_profile(s, legs, turn_angles(straight), LIMITS)
+    assert free.max() == pytest.approx(10.0)
 
 
 def test_the_stopping_rule_stops_in_time_goes_only_with_room_and_creeps_when_waited_for() -> None:

@@ -241,6 +241,23 @@ def test_route_keeps_turns_speed_changes_and_hovers_only() -> None:
     assert route.speeds.tolist() == pytest.approx([1.0, 1.0, 0.5])
 
 
+def test_without_holds_every_leg_keeps_its_own_speed_and_a_straight_line_is_one_leg() -> None:
+    """For a flight by passing order: a hover on a straight line is neither a waypoint
+    (ArduCopter plans one waypoint ahead, so short legs hold it back) nor spread over the
+    next leg as a slower speed (the timing and the order take that leg at its own)."""
+    # east at 1 cell/s with hovers of 2 s and 1 s on the way, then north at 0.5 cell/s
+    points = [[0, 0, 0], [1, 1, 0], [3, 1, 0], [4, 2, 0], [5, 2, 0], [6, 3, 0], [8, 3, 1]]
+    route = Route.of(points).without_holds()
+    assert route.xy.tolist() == [[0, 0], [3, 0], [3, 1]]
+    assert route.speeds.tolist() == pytest.approx([1.0, 0.5])
+    assert route.hold.tolist() == [0, 0, 0]
+    mission = build_mission(points, 1.0, CANBERRA, Autopilot.ARDUPILOT, holds=False)
+    waypoints = [i for i in mission.items if i.command == Command.NAV_WAYPOINT][1:]  # no home
+    speeds = [i.params[1] for i in mission.items if i.command == Command.DO_CHANGE_SPEED]
+    assert len(waypoints) == 1 and all(w.params[0] == 0 for w in waypoints)
+    assert speeds == pytest.approx([10.0, 5.0])  # m/s, 10 m cells
+
+
 def test_refuses_what_cannot_be_flown() -> None:
     with pytest.raises(ValueError, match="zero time"):
         Route.of([[0, 0, 0], [0, 1, 0]])
