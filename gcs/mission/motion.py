@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
+import numpy.typing as npt
 
 from gcs.mission.geodesy import Floats
 
@@ -177,7 +178,7 @@ def speed_profile(
     return s_vertices.copy(), bound
 
 
-def _waypoints(leg_speeds: Floats, turns: Floats, stops: Floats | None) -> Floats:
+def _waypoints(leg_speeds: Floats, turns: Floats, stops: Floats | None) -> npt.NDArray[np.bool_]:
     """Which vertices a mission keeps: the ends, turns, speed changes and stops."""
     waypoint = np.ones(len(leg_speeds) + 1, dtype=bool)
     straight = np.abs(turns) < 1e-6
