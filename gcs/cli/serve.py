@@ -44,6 +44,12 @@ def run(args: argparse.Namespace) -> int:
 
 def serve(settings: Settings) -> None:
     app = create_app(settings)
-    config = uvicorn.Config(app, host=settings.host, port=settings.port, log_level="info")
+    config = uvicorn.Config(
+        app,
+        host=settings.host,
+        port=settings.port,
+        log_level="info",
+        ws_max_size=settings.max_ws_message_bytes,  # uvicorn's default parks 16 MB a socket
+    )
     server = uvicorn.Server(config)
     server.run()

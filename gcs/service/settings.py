@@ -47,6 +47,18 @@ class Settings(BaseSettings):
         default=120.0, gt=0, description="cap on the time budget of one plan request"
     )
     live_rate_hz: float = Field(default=10.0, gt=0, le=50)
+    max_live_sockets: int = Field(
+        default=64, ge=1, le=10_000, description="live WebSockets open at once, in all"
+    )
+    max_live_sockets_per_subject: int = Field(
+        default=16, ge=1, le=10_000, description="live WebSockets open at once on one flight or job"
+    )
+    max_ws_message_bytes: int = Field(
+        default=4096,
+        ge=125,
+        le=16 * 2**20,
+        description="the largest WebSocket message a client may send (they only receive)",
+    )
     discovery_url: str = Field(
         default="udpin:127.0.0.1:14550",
         description="UDP port where vehicles that announce themselves are heard (as "

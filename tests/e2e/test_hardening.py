@@ -7,12 +7,14 @@ clock, in tests/service/test_hardening.py."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import socket
 import stat
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
@@ -155,6 +157,84 @@ def test_a_negative_seed_of_random_objects_is_422(service: ServiceProcess) -> No
     assert any(e["loc"][-1] == "seed" for e in answer.json()["detail"]), answer.text
     fine = post_scenario(service, {**CASE, "non_uav_objects": {"random": 2, "seed": 7}})
     assert fine.status_code == 201, fine.text
+
+
+# --- live sockets that cannot be made to hold memory (issue 28) -------------------------
+
+
+@pytest.fixture
+def capped(tmp_path: Path) -> Iterator[ServiceProcess]:
+    proc = ServiceProcess(
+        tmp_path / "data",
+        {"MVO_GCS_MAX_LIVE_SOCKETS": "4", "MVO_GCS_MAX_LIVE_SOCKETS_PER_SUBJECT": "2"},
+    )
+    proc.start()
+    yield proc
+    proc.stop()
+
+
+def running_job(service: ServiceProcess, client: httpx.Client) -> str:
+    """A planning job that runs for a minute unless cancelled."""
+    scenario = client.post("/scenarios", json=CASE).json()["id"]
+    request = {"wait_s": 0, "time_budget_s": 60, "iterations": 100_000, "patience": None}
+    answer = client.post(f"/scenarios/{scenario}/plans", json=request)
+    assert answer.status_code == 202, answer.text
+    return str(answer.json()["id"])
+
+
+def closed_code(socket_: Any) -> int | None:
+    """How the server closed the socket (every message before it read and dropped)."""
+    with pytest.raises(ConnectionClosed) as closed:
+        while True:
+            socket_.recv(timeout=20)
+    return closed.value.rcvd.code if closed.value.rcvd is not None else None
+
+
+def admitted_within(url: str, attempts: int) -> bool:
+    """Whether a socket is admitted (its first message arrives) within `attempts` tries:
+    the server frees a closed socket's place once it has read the close."""
+    for _ in range(attempts):
+        with connect(url, open_timeout=10) as socket_:
+            try:
+                socket_.recv(timeout=20)
+                return True
+            except ConnectionClosed as closed:
+                assert closed.rcvd is not None and closed.rcvd.code == 1013, closed
+    return False
+
+
+def test_live_sockets_only_send_hold_no_large_frames_and_are_capped(
+    capped: ServiceProcess,
+) -> None:
+    """A client that speaks on a live socket is closed (1008), one that sends more than
+    4 KiB in a frame too (1009: uvicorn's default let each park 16 MB); beyond 2 sockets
+    on one job, or 4 in all, a socket is closed at once (1013, saying which limit)."""
+    with capped.client() as client:
+        jobs = [running_job(capped, client) for _ in range(3)]
+        url = capped.url.replace("http", "ws") + "/jobs/{}/live"
+        try:
+            with contextlib.ExitStack() as sockets:
+
+                def open_on(job: int) -> Any:
+                    return sockets.enter_context(connect(url.format(jobs[job]), open_timeout=10))
+
+                speaker = open_on(0)
+                speaker.send("hello")
+                assert closed_code(speaker) == 1008
+                big = open_on(0)
+                big.send("x" * 8192)
+                assert closed_code(big) == 1009
+                kept = [open_on(0), open_on(0)]
+                assert closed_code(open_on(0)) == 1013  # 2 on that job already
+                kept += [open_on(1), open_on(1)]
+                assert closed_code(open_on(2)) == 1013  # 4 in all
+                for socket_ in kept:
+                    socket_.close()
+            assert admitted_within(url.format(jobs[2]), 50)  # room again once they are gone
+        finally:
+            for job in jobs:
+                client.post(f"/jobs/{job}/cancel")
+    assert not capped.problems()
 
 
 # --- a clean end ------------------------------------------------------------------------

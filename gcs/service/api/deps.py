@@ -16,6 +16,7 @@ from starlette.requests import HTTPConnection
 
 from gcs.mavlink.transport import TransportOpener, open_transport
 from gcs.service.api.auth import require_token
+from gcs.service.api.live_sockets import LiveSockets
 from gcs.service.api.schemas import Problem
 from gcs.service.discovery import Discovery
 from gcs.service.flights.book import FlightBook
@@ -56,6 +57,7 @@ class Services:
     operator: OperatorCommands
     loop_lag: LoopLagProbe
     discovery: Discovery | None
+    live: LiveSockets
 
     @classmethod
     def build(
@@ -91,6 +93,7 @@ class Services:
             operator=OperatorCommands(flights, registry),
             loop_lag=LoopLagProbe(metrics.loop_lag),
             discovery=discovery,
+            live=LiveSockets(settings.max_live_sockets, settings.max_live_sockets_per_subject),
         )
 
 

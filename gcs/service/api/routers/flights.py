@@ -10,7 +10,7 @@ import contextlib
 import json
 from typing import Any, Literal
 
-from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect, status
+from fastapi import APIRouter, Query, WebSocket, status
 from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -23,8 +23,10 @@ from gcs.service.api.deps import (
     get_services,
     mutating,
 )
+from gcs.service.api.live_sockets import send_until_done
 from gcs.service.api.schemas import MAX_PAGE, UNSAFE_SPEED, MissionShape, Problem, UtcDatetime
 from gcs.service.flights.active import VehicleAnswer
+from gcs.service.flights.service import FlightService
 from gcs.service.states import FlightState
 from gcs.service.storage import NotFound
 from gcs.service.storage.tables import FlightRow
@@ -347,28 +349,36 @@ async def delete_flight(flight_id: str, flights: FlightsDep) -> None:
 @router.websocket("/{flight_id}/live")
 async def live(websocket: WebSocket, flight_id: str) -> None:
     """`state` messages at the service's live rate (positions, modes, progress, schedule
-    lag) and every fleet event as it happens, until the flight has ended."""
+    lag) and every fleet event as it happens, until the flight has ended. The socket only
+    sends: a client message closes it (1008); beyond the service's caps it is closed at
+    once (1013)."""
     services = get_services(websocket)
-    await websocket.accept()
-    flights = services.flights
-    try:
-        queue = await flights.listen(flight_id)
-    except LookupError as exc:
-        await websocket.close(code=4404, reason=str(exc))
-        return
-    period = 1.0 / services.settings.live_rate_hz
-    try:
-        while True:
-            snapshot = await flights.snapshot(flight_id)
-            await websocket.send_json(snapshot)
-            if FlightState(snapshot["state"]).is_final and queue.empty():
-                break
-            with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(period):
-                    while True:
-                        await websocket.send_json(await queue.get())
-        await websocket.close()
-    except WebSocketDisconnect:
-        pass
-    finally:
-        flights.unlisten(flight_id, queue)
+    async with services.live.admitted(websocket, f"flight {flight_id}") as admitted:
+        if not admitted:
+            return
+        flights = services.flights
+        try:
+            queue = await flights.listen(flight_id)
+        except LookupError as exc:
+            await websocket.close(code=4404, reason=str(exc))
+            return
+        try:
+            await send_until_done(websocket, _stream(websocket, flights, flight_id, queue))
+        finally:
+            flights.unlisten(flight_id, queue)
+
+
+async def _stream(
+    websocket: WebSocket, flights: FlightService, flight_id: str, queue: asyncio.Queue[Any]
+) -> None:
+    period = 1.0 / get_services(websocket).settings.live_rate_hz
+    while True:
+        snapshot = await flights.snapshot(flight_id)
+        await websocket.send_json(snapshot)
+        if FlightState(snapshot["state"]).is_final and queue.empty():
+            break
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(period):
+                while True:
+                    await websocket.send_json(await queue.get())
+    await websocket.close()

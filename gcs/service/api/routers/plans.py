@@ -6,7 +6,7 @@ import asyncio
 import contextlib
 from typing import Any
 
-from fastapi import APIRouter, Query, WebSocket, WebSocketDisconnect, status
+from fastapi import APIRouter, Query, WebSocket, status
 from fastapi.responses import JSONResponse
 
 from gcs.service.api.deps import (
@@ -19,6 +19,7 @@ from gcs.service.api.deps import (
     get_services,
     mutating,
 )
+from gcs.service.api.live_sockets import send_until_done
 from gcs.service.api.schemas import MAX_PAGE, JobOut, PlanOut, PlanRequest, PlanSummary, Problem
 from gcs.service.states import OPEN, JobState, StateConflict
 from gcs.service.storage.tables import JobRow, PlanRow
@@ -182,29 +183,36 @@ async def cancel_job(job_id: str, planning: PlanningDep) -> JobOut:
 
 @router.websocket("/jobs/{job_id}/live")
 async def watch_job(websocket: WebSocket, job_id: str) -> None:
-    """The job as JSON after every progress report, closing once it has finished."""
+    """The job as JSON after every progress report, closing once it has finished. The
+    socket only sends: a client message closes it (1008); beyond the service's caps it is
+    closed at once (1013)."""
     services = get_services(websocket)
-    await websocket.accept()
-    try:
-        job = await services.jobs.get(job_id)
-    except LookupError as exc:
-        await websocket.close(code=4404, reason=str(exc))
-        return
-    queue = services.planning.watch(job_id)
-    try:
-        await _send_job(websocket, job)
-        while not JobState(job.state).is_final:
-            with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(1.0):
-                    job = await queue.get()
-                await _send_job(websocket, job)
-                continue
-            job = await services.jobs.get(job_id)  # a quiet second: read it back anyway
-        await websocket.close()
-    except WebSocketDisconnect:
-        pass
-    finally:
-        services.planning.unwatch(job_id, queue)
+    async with services.live.admitted(websocket, f"job {job_id}") as admitted:
+        if not admitted:
+            return
+        try:
+            job = await services.jobs.get(job_id)
+        except LookupError as exc:
+            await websocket.close(code=4404, reason=str(exc))
+            return
+        queue = services.planning.watch(job_id)
+        try:
+            await send_until_done(websocket, _follow(websocket, job, queue))
+        finally:
+            services.planning.unwatch(job_id, queue)
+
+
+async def _follow(websocket: WebSocket, job: JobRow, queue: asyncio.Queue[JobRow]) -> None:
+    jobs = get_services(websocket).jobs
+    await _send_job(websocket, job)
+    while not JobState(job.state).is_final:
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(1.0):
+                job = await queue.get()
+            await _send_job(websocket, job)
+            continue
+        job = await jobs.get(job.id)  # a quiet second: read it back anyway
+    await websocket.close()
 
 
 async def _send_job(websocket: WebSocket, job: JobRow) -> None:
