@@ -179,12 +179,15 @@ async def _close(entry: _Entry) -> None:
 
 
 def describe(link: VehicleLink) -> dict[str, Any]:
-    """A vehicle's live state as the API shows it."""
+    """A vehicle's live state as the API shows it. With the link down every value is the
+    last one heard (`stale`), `seconds_since_heard` ago: an armed vehicle in AUTO that
+    nobody hears is not shown as one."""
     state = link.state
     position = state.position
     now = asyncio.get_running_loop().time()
     return {
         "online": state.link_up,
+        "stale": not state.link_up,
         "sysid": state.sysid,
         "autopilot": link.autopilot.name.lower(),
         "mode": state.mode,

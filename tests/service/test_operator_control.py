@@ -16,6 +16,7 @@ import asyncio
 import itertools
 from typing import Any
 
+import httpx
 import pytest
 
 from gcs.mission.geodesy import distance_m
@@ -160,8 +161,16 @@ async def test_a_short_link_outage_does_not_end_the_flight(gcs: InProcessService
 
     await until(offline, 30, "link lost")
     assert await flight.state() == "flying"
+    lost = await _live_vehicle(client, flight.id, uav1)
+    assert lost["stale"] and lost["seconds_since_heard"] >= 4.0, lost  # last heard, not now
     await until(lambda: online(client, uav1), 30, "link back")
+    assert not (await _live_vehicle(client, flight.id, uav1))["stale"]
     assert await flight.wait_state("landed", "ended", "interrupted") == "landed"
+
+
+async def _live_vehicle(client: httpx.AsyncClient, flight_id: str, vehicle_id: str) -> dict:
+    live = (await client.get(f"/flights/{flight_id}/live-state")).json()
+    return next(v for v in live["vehicles"] if v["vehicle_id"] == vehicle_id)
 
 
 async def test_one_vehicle_is_held_landed_or_sent_home_with_or_without_a_flight(

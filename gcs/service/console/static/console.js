@@ -503,9 +503,13 @@ function updateVehicleRow(vehicleId, v) {
   }
   c.uav.textContent = entry.uav ?? entry.name ?? vehicleId;
   c.uav.title = `${entry.name ?? ""} (vehicle ${vehicleId})`;
-  c.link.textContent = v.online ? "up" : "DOWN";
-  c.link.title = v.seconds_since_heard == null ? "" : `last heard ${fmt(v.seconds_since_heard, 1)} s ago`;
+  // With the link down every value is the last one heard: shown as such, with its age.
+  const heard = v.seconds_since_heard == null ? "" : `last heard ${fmt(v.seconds_since_heard, 1)} s ago`;
+  c.link.textContent = v.online ? "up" : v.seconds_since_heard == null ? "DOWN" : `DOWN ${fmt(v.seconds_since_heard, 0)} s`;
+  c.link.title = heard;
   c.link.className = v.online ? "col-link ok" : "col-link bad";
+  entry.row.classList.toggle("stale", Boolean(v.stale));
+  entry.row.title = v.stale ? `not heard: mode, altitude, item and flags as ${heard}` : "";
   c.mode.textContent = v.mode ?? "?";
   c.alt.textContent = v.relative_alt_m == null ? "–" : `${fmt(v.relative_alt_m, 1)} m`;
   c.hdg.textContent = v.heading_deg == null ? "–" : `${fmt(v.heading_deg, 0)}°`;
@@ -514,7 +518,7 @@ function updateVehicleRow(vehicleId, v) {
   // Who waits for whom: the passing order stops (or edges on) a vehicle until another
   // has left the stretch they share.
   const waits = p.waits_for ? `waits for ${p.waits_for}` : "";
-  const flags = [v.armed ? "armed" : "", waits, ...["held", "withdrawn", "landing", "finished"].filter((k) => p[k])];
+  const flags = [v.armed ? (v.stale ? "armed?" : "armed") : "", waits, ...["held", "withdrawn", "landing", "finished"].filter((k) => p[k])];
   c.flags.textContent = flags.filter(Boolean).join(" ");
   c.flags.classList.toggle("waiting", Boolean(waits));
   entry.row.dataset.online = String(Boolean(v.online));
