@@ -34,7 +34,6 @@ import math
 import os
 import platform
 import re
-import signal
 import subprocess
 import sys
 import tempfile
@@ -52,6 +51,7 @@ from gcs.mission.geodesy import GridFrame  # noqa: E402
 from planner.experiments.machine import describe_machine  # noqa: E402
 from planner.experiments.scenario_generator import crossing_scenario, random_scenario  # noqa: E402
 from planner.scenario import Scenario  # noqa: E402
+from tests.sitl.ardupilot_sitl import stop_process  # noqa: E402
 from tests.sitl.flown import (  # noqa: E402
     ARRIVAL_M,
     CANBERRA,
@@ -141,17 +141,6 @@ def read_cli(result: Result, fly: subprocess.CompletedProcess[str]) -> None:
         result.note = (fly.stderr.strip().splitlines() or ["?"])[-1][:200]
 
 
-def stop(process: subprocess.Popen) -> None:
-    """By its process id: SIGTERM, then SIGKILL if it will not go."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGTERM)
-        try:
-            process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(timeout=5)
-
-
 # --- the mock ---------------------------------------------------------------------------
 
 
@@ -175,7 +164,7 @@ def fly_mock(name: str, scenario: Scenario, speed: float, rate: float, work: Pat
             timeout=3600,
         )  # fmt: skip
     finally:
-        stop(mock)
+        stop_process(mock)
     result.wall_s = time.monotonic() - began
     (work / "fly.log").write_text(fly.stdout + "\n--- stderr\n" + fly.stderr)
     read_cli(result, fly)

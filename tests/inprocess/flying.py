@@ -18,6 +18,18 @@ from sitl_mock import Simulator
 from tests.inprocess.service import until
 
 
+async def plan_scenario(client: httpx.AsyncClient, scenario: Scenario) -> dict[str, Any]:
+    """POST the scenario and plan it (within 30 s); the feasible plan as the API gives it."""
+    answer = await client.post("/scenarios", json=scenario.model_dump(mode="json"))
+    assert answer.status_code == 201, answer.text
+    sid = answer.json()["id"]
+    planned = await client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30})
+    assert planned.status_code == 201, planned.text
+    plan: dict[str, Any] = planned.json()
+    assert plan["plan"]["feasible"], plan
+    return plan
+
+
 @dataclass
 class Flight:
     """A flight of a scenario bound to the vehicles of `sim`, made through the API."""
@@ -35,16 +47,10 @@ class Flight:
         cls, client: httpx.AsyncClient, sim: Simulator, case: str | Scenario = "case-1"
     ) -> Flight:
         scenario = load_case(case) if isinstance(case, str) else case
-        answer = await client.post("/scenarios", json=scenario.model_dump(mode="json"))
-        assert answer.status_code == 201, answer.text
-        sid = answer.json()["id"]
-        planned = await client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30})
-        assert planned.status_code == 201, planned.text
-        plan = planned.json()
-        assert plan["plan"]["feasible"], plan
+        plan = await plan_scenario(client, scenario)
         ids = [await register(client, sim.connection_string(s)) for s in sim.sysids]
         flight = await bind(client, plan["id"], scenario, ids)
-        return cls(client, sim, scenario, sid, plan, ids, flight)
+        return cls(client, sim, scenario, plan["scenario_id"], plan, ids, flight)
 
     async def state(self) -> str:
         return str((await self.client.get(f"/flights/{self.id}")).json()["state"])

@@ -16,7 +16,7 @@ import pytest
 
 from planner.cases import load_case
 from planner.scenario import Scenario
-from tests.inprocess.flying import online, register
+from tests.inprocess.flying import online, plan_scenario, register
 from tests.inprocess.service import InProcessService, until
 
 pytestmark = [pytest.mark.virtual_clock]
@@ -87,14 +87,7 @@ async def _service_memory(gcs: InProcessService) -> tracemalloc.Snapshot:
 
 
 async def _plan(client: httpx.AsyncClient, scenario: Scenario) -> str:
-    answer = await client.post("/scenarios", json=scenario.model_dump(mode="json"))
-    assert answer.status_code == 201, answer.text
-    sid = answer.json()["id"]
-    planned = await client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30})
-    assert planned.status_code == 201, planned.text
-    plan = planned.json()
-    assert plan["plan"]["feasible"], plan
-    return str(plan["id"])
+    return str((await plan_scenario(client, scenario))["id"])
 
 
 async def _one_flight(

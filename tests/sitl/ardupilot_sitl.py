@@ -112,7 +112,7 @@ def instances(
         yield started
     finally:
         for instance in started:
-            _stop(instance.process)
+            stop_process(instance.process)
 
 
 def _in_use(port: int) -> bool:
@@ -131,7 +131,8 @@ def _wait_listening(instance: Instance, timeout: float = 30.0) -> None:
         time.sleep(0.1)
 
 
-def _stop(process: subprocess.Popen[bytes]) -> None:
+def stop_process(process: subprocess.Popen) -> None:
+    """By its process id: SIGTERM, then SIGKILL if it will not go."""
     if process.poll() is None:
         process.send_signal(signal.SIGTERM)
         try:
