@@ -275,11 +275,14 @@ def test_an_operator_flies_case_vi_from_the_console(
         end = float(page.input_value("#time-slider"))
         assert end == pytest.approx(max(u["trajectory"][-1][0] for u in plan["uavs"]), abs=0.06)
 
-        # Bind (the page's default: the vehicles in order) and upload, once all are online.
+        # Bind (the page's default: the vehicles in order) and upload, once all are online,
+        # at 1 m/s: at the default 5 m/s case VI is over in 6 wall seconds here, before a
+        # busy machine's page has paused, continued and reported a bird.
         b.wait_js(
             "() => document.querySelectorAll('#vehicle-table tr[data-online=true]').length === 3",
             60,
         )
+        page.fill("#fl-speed", "1")
         page.click("#upload-btn")
         wait_state(b, ("uploaded", "upload_failed"), 120)
         assert state_shown(b) == "uploaded", page.inner_text("#upload-results")
