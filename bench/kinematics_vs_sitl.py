@@ -53,6 +53,7 @@ from pathlib import Path
 
 import numpy as np
 import pymap3d
+from mock_vs_sitl import upload_items  # bench/ is on the path of a script run from it
 from pymavlink import mavutil
 
 HOME = (-35.363262, 149.165237, 584.0)
@@ -266,26 +267,7 @@ class Pilot:
         )
 
     def upload(self) -> None:
-        items = self.plan.items
-        for _ in range(30):
-            self.link.mav.mission_count_send(self.target, 1, len(items), 0)
-            while (
-                msg := self.link.recv_match(
-                    type=["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"],
-                    blocking=True,
-                    timeout=3,
-                )
-            ) is not None:
-                if msg.get_type() == "MISSION_ACK":
-                    if msg.type == MAV.MAV_MISSION_ACCEPTED:
-                        return
-                    break
-                frame, command, p1, p2, p3, p4, x, y, z = items[msg.seq]
-                self.link.mav.mission_item_int_send(
-                    self.target, 1, msg.seq, frame, command, 0, 1, p1, p2, p3, p4, x, y, z
-                )
-            time.sleep(1.0)
-        raise RuntimeError("mission upload not accepted")
+        upload_items(self.link, self.target, self.plan.items)
 
     def command_until_accepted(self, command: int, *params: float) -> None:
         padded = [*params, *[0.0] * (7 - len(params))]

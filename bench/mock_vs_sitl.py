@@ -90,7 +90,12 @@ def _fly(link: mavutil.mavfile) -> Flight:
 
 
 def _upload(link: mavutil.mavfile, target: int) -> None:
-    items = mission()
+    upload_items(link, target, mission())
+
+
+def upload_items(link: mavutil.mavfile, target: int, items: list) -> None:
+    """The mission protocol by hand, (frame, command, p1-p4, x, y, z) per item, tried
+    again until the vehicle accepts it (a vehicle still booting refuses)."""
     for _ in range(30):
         link.mav.mission_count_send(target, 1, len(items), 0)
         while (

@@ -6,11 +6,12 @@ asyncio's own loop."""
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable, Mapping
+from collections.abc import AsyncIterator, Callable, Mapping
 
 import pytest
 
 from sitl_mock.virtual_time import VirtualTimeLoop
+from tests.inprocess.vehicles import SimulatedVehicles
 
 
 def pytest_asyncio_loop_factories(
@@ -19,3 +20,11 @@ def pytest_asyncio_loop_factories(
     if item.get_closest_marker("virtual_clock") is not None:
         return {"virtual": VirtualTimeLoop}
     return {"asyncio": asyncio.new_event_loop}
+
+
+@pytest.fixture
+async def vehicles() -> AsyncIterator[SimulatedVehicles]:
+    """Simulated vehicles in the test's process (in-memory ports), stopped when it ends."""
+    fleet = SimulatedVehicles()
+    yield fleet
+    await fleet.stop()

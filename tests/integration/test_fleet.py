@@ -58,13 +58,6 @@ def planned(name: str) -> tuple[Scenario, Plan]:
 
 
 @pytest.fixture
-async def vehicles() -> AsyncIterator[SimulatedVehicles]:
-    fleet = SimulatedVehicles()
-    yield fleet
-    await fleet.stop()
-
-
-@pytest.fixture
 async def opened() -> AsyncIterator[list[VehicleLink]]:
     """Links a test opens; all are closed when it ends."""
     links: list[VehicleLink] = []

@@ -13,13 +13,6 @@ from tests.inprocess.vehicles import SimulatedVehicles
 
 
 @pytest.fixture
-async def vehicles() -> AsyncIterator[SimulatedVehicles]:
-    fleet = SimulatedVehicles()
-    yield fleet
-    await fleet.stop()
-
-
-@pytest.fixture
 async def gcs(tmp_path: Path, vehicles: SimulatedVehicles) -> AsyncIterator[InProcessService]:
     service = InProcessService(tmp_path / "data", vehicles)
     await service.start()
