@@ -214,13 +214,17 @@ def streamable(flavour: Flavour) -> frozenset[int]:
     return frozenset(BUILDERS) - ARDUPILOT_ONLY
 
 
-def autopilot_version(sysid: int, flavour: Flavour) -> Message:
+def autopilot_version(sysid: int, flavour: Flavour, board_id: bytes) -> Message:
+    """ArduPilot reports its board in `uid2` (SITL: the machine id plus the instance) and
+    leaves `uid` zero; PX4 reports it in `uid`."""
     if flavour.name == "px4":
         version = (1 << 24) | (15 << 16) | (0 << 8) | S.FIRMWARE_VERSION_TYPE_OFFICIAL
         capabilities = CAPABILITIES | S.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+        uid, uid2 = int.from_bytes(board_id, "big"), [0] * 18
     else:
         version = (4 << 24) | (8 << 16) | (0 << 8) | S.FIRMWARE_VERSION_TYPE_DEV
         capabilities = CAPABILITIES
+        uid, uid2 = 0, list(board_id.ljust(18, b"\0"))
     return S.MAVLink_autopilot_version_message(
         capabilities,
         version,
@@ -232,8 +236,8 @@ def autopilot_version(sysid: int, flavour: Flavour) -> Message:
         [0] * 8,
         0x1209,
         0x5741,
-        0x4D4F434B00000000 + sysid,
-        [0] * 18,
+        uid,
+        uid2,
     )
 
 

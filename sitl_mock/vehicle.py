@@ -381,7 +381,7 @@ class Vehicle:
 
     def _send_by_id(self, msg_id: int) -> None:
         if msg_id == mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
-            self.send(messages.autopilot_version(self.sysid, self.flavour))
+            self.send(messages.autopilot_version(self.sysid, self.flavour, self.config.board_id))
         else:
             self.send(messages.BUILDERS[msg_id](self.state(), self.flavour))
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import secrets
 from dataclasses import dataclass, field
 
 from .faults import Faults
@@ -14,6 +15,7 @@ DEFAULT_HOME = (47.3977, 8.5456, 488.0)
 PX4_ESTIMATE_S = 5.0
 TRANSPORTS = ("udp", "tcp", "memory")
 KEY_BYTES = 32
+BOARD_ID_BYTES = 8
 
 
 @dataclass
@@ -40,6 +42,9 @@ class VehicleConfig:
     """A 32-byte MAVLink 2 signing key: sign everything sent, accept only signed packets."""
     outputs: tuple[str, ...] = ()
     """`udp:HOST:PORT` ground stations to send to, as MAVProxy's --out (shared by vehicles)."""
+    board_id: bytes = field(default_factory=lambda: secrets.token_bytes(BOARD_ID_BYTES))
+    """The flight controller's unique id, reported in AUTOPILOT_VERSION (ArduPilot's `uid2`,
+    PX4's `uid`): each vehicle its own, so that one reached two ways is known as one."""
 
     def __post_init__(self) -> None:
         if not 1 <= self.sysid <= 255:
@@ -52,6 +57,8 @@ class VehicleConfig:
             raise ValueError(f"signing_key must be {KEY_BYTES} bytes, got {len(self.signing_key)}")
         for output in self.outputs:
             parse_output(output)
+        if len(self.board_id) != BOARD_ID_BYTES or not any(self.board_id):
+            raise ValueError(f"board_id must be {BOARD_ID_BYTES} bytes, not all zero")
 
     @property
     def flavour(self) -> Flavour:

@@ -15,13 +15,16 @@ import asyncio
 from collections.abc import Callable, Coroutine, Iterable
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gcs.mavlink.connection import GCS_COMPID, GCS_SYSID, MavConnection, Message
 from gcs.mavlink.errors import LinkLostError, VehicleRebootedError
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.subscription import Predicate, Subscription
 from gcs.mavlink.vehicle_state import MAV_STATE_BOOT, VehicleState
+
+if TYPE_CHECKING:
+    from gcs.mavlink.identity import VehicleIdentity
 
 BOOT_TIME_JUMP_MS = 2000  # time_boot_ms going back by more than this means a reboot
 HEARTBEAT_GAP_FACTOR = 1.8  # one heartbeat missed makes a gap (checked, not trusted)
@@ -87,6 +90,7 @@ class VehicleLink:
         self.heartbeat_period_s: float | None = None
         self.gap_began: float | None = None  # loop time the latest heartbeat gap began
         self.last_sent: float | None = None  # loop time we last sent the vehicle anything
+        self.identity: VehicleIdentity | None = None  # what it reported (gcs.mavlink.identity)
         self._received(heartbeat)
         connection.attach(self.sysid, self._received)
         self.spawn(self._watchdog())

@@ -5,18 +5,25 @@ so that a vehicle switched on after the service (or rebooted) is picked up witho
 operator's help. The routers only ever see `link()` (or `VehicleOffline`) and `state()`.
 Removing a vehicle, and closing the registry, finish within a bound whatever the link
 is doing.
+
+Each link is asked which vehicle it reaches (`gcs.mavlink.identity`), so that one vehicle
+registered twice (its own port, and the listening port) is known as one: a second
+registration is refused when the vehicle answers at once, and `same_vehicles` lets the
+flights refuse a second owner whenever it does.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
-from dataclasses import dataclass
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
 from typing import Any
 
 from gcs.mavlink import client
 from gcs.mavlink.connection import Signing
 from gcs.mavlink.errors import GcsError
+from gcs.mavlink.identity import VehicleIdentity, identify
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.transport import TransportOpener, open_transport
 from gcs.mavlink.vehicle_state import VehicleState
@@ -25,6 +32,8 @@ from gcs.service.metrics import ServiceMetrics
 
 log = logging.getLogger("mvo_gcs.vehicles")
 RETRY_S = (0.5, 1.0, 2.0, 5.0)  # back-off between connection attempts
+IDENTIFY_ASKS = 3  # an autopilot that never says which it is is not asked forever
+PROBE_TIMEOUT_S = 3.0  # a registration waits this long at most to learn which vehicle it is
 CLOSE_TIMEOUT_S = 3.0
 
 
@@ -125,6 +134,62 @@ class VehicleRegistry:
     def links(self) -> list[VehicleLink]:
         return [e.link for e in self._entries.values() if e.link is not None]
 
+    def identity(self, vehicle_id: str) -> VehicleIdentity | None:
+        """Which vehicle the registration reaches, once it has said (None before)."""
+        entry = self._entries.get(vehicle_id)
+        return entry.link.identity if entry is not None and entry.link is not None else None
+
+    def same_vehicles(self, vehicle_id: str) -> set[str]:
+        """Every registration known to reach the vehicle `vehicle_id` reaches (itself too)."""
+        mine = self.identity(vehicle_id)
+        if mine is None:
+            return {vehicle_id}
+        return {vehicle_id} | {
+            other
+            for other in self._entries
+            if (theirs := self.identity(other)) is not None and mine.is_same_vehicle(theirs)
+        }
+
+    async def identify_all(self, vehicle_ids: Iterable[str]) -> None:
+        """Ask each vehicle that is online which one it is, if it has not said yet."""
+        links = [link for vid in vehicle_ids if (link := self.link_or_none(vid)) is not None]
+        await asyncio.gather(*(identify(link) for link in links))
+
+    async def registered_as(
+        self, connection: str, sysid: int | None, signing: Signing | None
+    ) -> tuple[str, VehicleIdentity] | None:
+        """The registered vehicle that `connection` reaches too, if it answers within
+        PROBE_TIMEOUT_S (a vehicle that is off cannot say; the flights still refuse it a
+        second owner once it does)."""
+        known = {vid: ident for vid in self._entries if (ident := self.identity(vid)) is not None}
+        if not any(sysid in (None, ident.sysid) for ident in known.values()):
+            return None  # nothing it could be: no need to knock
+        found = await self._probe(connection, sysid, signing)
+        if found is None:
+            return None
+        return next(
+            ((vid, ident) for vid, ident in known.items() if ident.is_same_vehicle(found)), None
+        )
+
+    async def _probe(
+        self, connection: str, sysid: int | None, signing: Signing | None
+    ) -> VehicleIdentity | None:
+        if self.discovery is not None and self.discovery.serves(connection):
+            link = self.discovery.link(sysid)
+            return await identify(link) if link is not None else None
+        quick = replace(self._settings, connect_timeout_s=PROBE_TIMEOUT_S, request_streams=False)
+        try:
+            async with asyncio.timeout(PROBE_TIMEOUT_S * 2):
+                link = await client.connect(
+                    connection, sysid=sysid, settings=quick, signing=signing, opener=self._opener
+                )
+                try:
+                    return await identify(link)
+                finally:
+                    await link.close()
+        except (GcsError, OSError, TimeoutError):
+            return None
+
     async def close(self) -> None:
         entries = list(self._entries.values())
         self._entries.clear()
@@ -158,8 +223,13 @@ class VehicleRegistry:
         await self._report(vehicle_id, link)
 
     async def _report(self, vehicle_id: str, link: VehicleLink) -> None:
-        """The link re-finds a vehicle that went quiet by itself; this only reports it."""
+        """The link re-finds a vehicle that went quiet by itself; this only reports it
+        (and asks the vehicle which one it is, until it has said)."""
+        asks = 0
         while True:
+            if link.identity is None and link.state.link_up and asks < IDENTIFY_ASKS:
+                asks += 1
+                await identify(link)
             self._metrics.link_up.labels(vehicle_id).set(int(link.state.link_up))
             self._metrics.ignored_packets.labels(vehicle_id).set(link.connection.dropped)
             await asyncio.sleep(1.0)
@@ -189,6 +259,7 @@ def describe(link: VehicleLink) -> dict[str, Any]:
         "online": state.link_up,
         "stale": not state.link_up,
         "sysid": state.sysid,
+        "uid": link.identity.uid if link.identity is not None else None,
         "autopilot": link.autopilot.name.lower(),
         "mode": state.mode,
         "armed": state.armed,

@@ -70,7 +70,7 @@ class Services:
         registry = VehicleRegistry(metrics, discovery=discovery, opener=opener)
         events = EventWriter(flight_records)
         flights = FlightService(
-            book=FlightBook(flight_records, events),
+            book=FlightBook(flight_records, events, registry.same_vehicles),
             plans=plans,
             scenarios=scenarios,
             vehicles=vehicles,

@@ -3,13 +3,15 @@
 Every state change goes through `transition`: one conditional write in storage (the
 transition table decides), then the cached state, a `FlightState` event (stored and
 streamed) and the live listeners. Ownership (a vehicle belongs to at most one open
-flight) is decided under one lock, together with the transition that claims it.
+flight) is decided under one lock, together with the transition that claims it, and
+by vehicle, not by registration: `same_vehicles` names the registrations that reach the
+vehicle another way (one system reached on its own port and on the listening port).
 """
 
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from gcs.service.flights.active import LISTENER_QUEUE, ActiveFlight
@@ -21,9 +23,16 @@ from gcs.service.storage.tables import FlightRow
 
 
 class FlightBook:
-    def __init__(self, flights: FlightRepository, events: EventWriter) -> None:
+    def __init__(
+        self,
+        flights: FlightRepository,
+        events: EventWriter,
+        same_vehicles: Callable[[str], set[str]] = lambda vehicle_id: {vehicle_id},
+    ) -> None:
         self.flights = flights
         self.events = events
+        self.same_vehicles = same_vehicles
+        """vehicle id -> every registered vehicle id known to reach that vehicle (itself too)."""
         self.active: dict[str, ActiveFlight] = {}
         self._slots: dict[str, FlightSlot] = {}
         self._states: dict[str, FlightState] = {}
@@ -82,22 +91,36 @@ class FlightBook:
             queue.put_nowait(message)
 
     async def owners(self, vehicle_ids: Iterable[str], excluding: str) -> dict[str, FlightRow]:
-        """vehicle id -> the other open flight that owns it."""
-        wanted = set(vehicle_ids)
+        """vehicle id -> the other open flight that owns it, under any registration."""
         owned: dict[str, FlightRow] = {}
-        for row in await self.flights.open_flights():
-            if row.id == excluding:
-                continue
-            for vehicle_id in wanted & set(row.bindings.values()):
+        rows = [row for row in await self.flights.open_flights() if row.id != excluding]
+        for vehicle_id in set(vehicle_ids):
+            row = _owner(rows, self.same_vehicles(vehicle_id))
+            if row is not None:
                 owned[vehicle_id] = row
         return owned
 
     async def refuse_owned(self, bindings: dict[str, str], flight_id: str) -> None:
+        """409 if a vehicle belongs to another open flight, or is bound twice here."""
+        uav_of = {vid: uav for uav, vid in bindings.items()}
+        twice = [
+            (uav, other)
+            for uav, vid in bindings.items()
+            for other in sorted(self.same_vehicles(vid) - {vid})
+            if other in uav_of and uav < uav_of[other]
+        ]
+        if twice:
+            clashes = "; ".join(
+                f"{uav} ({bindings[uav]}) and {uav_of[other]} ({other})" for uav, other in twice
+            )
+            raise StateConflict(
+                f"flight {flight_id}: {clashes} are one vehicle reached two ways; bind it once"
+            )
         owned = await self.owners(bindings.values(), excluding=flight_id)
         if owned:
-            uav_of = {vid: uav for uav, vid in bindings.items()}
             clashes = "; ".join(
-                f"vehicle {vid} ({uav_of[vid]}) belongs to flight {row.id}, which is {row.state}"
+                f"vehicle {vid} ({uav_of[vid]}) {_as_bound(row, vid, self.same_vehicles(vid))} "
+                f"flight {row.id}, which is {row.state}"
                 for vid, row in sorted(owned.items())
             )
             raise StateConflict(
@@ -106,13 +129,27 @@ class FlightBook:
             )
 
     async def open_flight_of(self, vehicle_id: str) -> FlightRow | None:
-        for row in await self.flights.open_flights():
-            if vehicle_id in row.bindings.values():
-                return row
-        return None
+        return _owner(await self.flights.open_flights(), self.same_vehicles(vehicle_id))
+
+    def uav_of(self, row: FlightRow, vehicle_id: str) -> str:
+        """The UAV of `row` flown by the vehicle `vehicle_id` reaches."""
+        same = self.same_vehicles(vehicle_id)
+        return next(uav for uav, vid in row.bindings.items() if vid in same)
 
     def forget(self, flight_id: str) -> ActiveFlight | None:
         """Drop what the service kept for a flight that has ended."""
         self._slots.pop(flight_id, None)
         self._bindings.pop(flight_id, None)
         return self.active.pop(flight_id, None)
+
+
+def _owner(rows: Iterable[FlightRow], same: set[str]) -> FlightRow | None:
+    return next((row for row in rows if same & set(row.bindings.values())), None)
+
+
+def _as_bound(row: FlightRow, vehicle_id: str, same: set[str]) -> str:
+    """How `vehicle_id` belongs to `row`: itself, or as the registration `row` bound."""
+    if vehicle_id in row.bindings.values():
+        return "belongs to"
+    bound = next(vid for vid in row.bindings.values() if vid in same)
+    return f"is vehicle {bound} (the same system and board, reached another way) of"

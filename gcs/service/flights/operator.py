@@ -143,7 +143,7 @@ class OperatorCommands:
         if owner is None:
             outcome = await _on_link(FlightActions(link), action, vehicle_id)
             return VehicleAnswer("", vehicle_id, outcome.ok, outcome.detail, _now() - asked)
-        uav = next(u for u, v in owner.bindings.items() if v == vehicle_id)
+        uav = self.book.uav_of(owner, vehicle_id)
         async with self.book.slot(owner.id).intervention():
             outcome = await self._in_flight(owner, uav, vehicle_id, action)
         self.book.events.record(

@@ -116,6 +116,7 @@ class FlightService:
             plan, scenario = await self._flyable(row)
             links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
             flight = await _flight_for(plan, scenario, links, row.options)
+            await self.registry.identify_all(row.bindings.values())  # ownership is by vehicle
             async with self.book.claims:
                 await self.book.refuse_owned(row.bindings, flight_id)
                 _refuse_airborne(row, links)

@@ -130,6 +130,14 @@ async def register_vehicle(
                     f"{vehicle.connection} (sysid {vehicle.sysid or 'any'}) is already "
                     f"registered as vehicle {existing.id} ({existing.connection})"
                 )
+        signing = Signing.from_text(vehicle.signing_key) if vehicle.signing_key else None
+        same = await registry.registered_as(resolved, vehicle.sysid, signing)
+        if same is not None:
+            existing = await vehicles.get(same[0])
+            raise AlreadyRegistered(
+                f"{vehicle.connection} reaches vehicle {existing.id} ({same[1]}), already "
+                f"registered as {existing.connection}: one vehicle is registered once"
+            )
         row = VehicleRow(
             name=vehicle.name or vehicle.connection,
             connection=resolved,
@@ -195,7 +203,7 @@ async def delete_vehicle(
     await vehicles.get(vehicle_id)
     async with flights.book.claims:  # no upload may claim it meanwhile
         owner = await flights.book.open_flight_of(vehicle_id)
-        if owner is not None:
+        if owner is not None and vehicle_id in owner.bindings.values():
             raise StateConflict(
                 f"vehicle {vehicle_id} belongs to flight {owner.id}, which is {owner.state}: "
                 "it cannot be removed until that flight has ended"
