@@ -5,9 +5,13 @@ may speak through one connection (a udpin port many vehicles send to); each mess
 to the handler registered for its sender's system id, so two vehicles sharing a port
 never see each other's traffic. On a listening port the first address a system id's
 HEARTBEAT comes from speaks for that system from then on: packets claiming that system
-id from any other address are dropped and counted (`ignored`), so a local process cannot
-pose as a vehicle. With a signing key, every packet we send is signed and every packet
-that is unsigned or wrongly signed is dropped and counted the same way.
+id from any other address are dropped and counted (`ignored`), and the latest such
+claimant is kept (`contested`), so a local process cannot pose as a vehicle. A system
+silent for RELOCK_AFTER_S may come back from a new address, unless it is `pinned` (a
+registered vehicle): then only the operator moves it (`relock`), or, on a signed
+connection, a validly signed packet. With a signing key, every packet we send is signed
+and every packet that is unsigned or wrongly signed is dropped and counted the same way.
+Per-sender parsers are bounded in count and time (`gcs.mavlink.recent`).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.endpoint import Endpoint
+from gcs.mavlink.recent import Recent
 from gcs.mavlink.transport import ByteTransport, Peer, TransportOpener, open_transport
 
 GCS_SYSID = 255
@@ -72,6 +77,26 @@ class _Speaker:
     heard: float
 
 
+@dataclass
+class Contest:
+    """Another address that claims a system id already speaking from elsewhere."""
+
+    peer: Peer
+    packets: int
+    last: float
+
+    @property
+    def address(self) -> str:
+        return format_peer(self.peer)
+
+
+def format_peer(peer: Peer) -> str:
+    if peer is None:
+        return "the connection's one peer"
+    host, port = peer[:2]
+    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
+
+
 class MavConnection:
     """A byte transport spoken as MAVLink 2, shared by the vehicle links on it."""
 
@@ -90,11 +115,14 @@ class MavConnection:
             signing.apply(self.codec, outgoing=True)
         self.ignored = 0  # packets dropped: a spoofed sender, a bad or missing signature
         self._transport: ByteTransport | None = transport
-        self._parsers: dict[Peer, Any] = {}
+        self._loop = asyncio.get_running_loop()
+        self._parsers: Recent[Peer, Any] = Recent(self._loop.time)
         self._handlers: dict[int, Handler] = {}
         self._listeners: list[Handler] = []
         self._speakers: dict[int, _Speaker] = {}
-        self._loop = asyncio.get_running_loop()
+        self.pinned: set[int] = set()
+        """System ids that keep their address through a silence (registered vehicles)."""
+        self.contested: dict[int, Contest] = {}
         transport.set_receiver(self._received)
         self._heartbeat = asyncio.ensure_future(self._send_heartbeats()) if heartbeat else None
 
@@ -119,13 +147,15 @@ class MavConnection:
 
     # --- receiving ---------------------------------------------------------------------
 
+    def _new_parser(self) -> Any:
+        parser = mavlink2.MAVLink(None)
+        parser.robust_parsing = True
+        if self.signing is not None:
+            self.signing.apply(parser, outgoing=False)
+        return parser
+
     def _received(self, data: bytes, peer: Peer) -> None:
-        parser = self._parsers.get(peer)
-        if parser is None:
-            parser = self._parsers[peer] = mavlink2.MAVLink(None)
-            parser.robust_parsing = True
-            if self.signing is not None:
-                self.signing.apply(parser, outgoing=False)
+        parser = self._parsers.touch(peer, self._new_parser)
         for msg in parser.parse_buffer(data) or ():
             if msg.get_type() == "BAD_DATA":
                 self.ignored += int(self.signing is not None and _is_packet(msg))
@@ -143,11 +173,29 @@ class MavConnection:
             elif msg.get_type() == "HEARTBEAT":
                 self._speakers[sysid] = _Speaker(peer, now)
             return True
-        if msg.get_type() == "HEARTBEAT" and now - speaker.heard > RELOCK_AFTER_S:
+        if msg.get_type() == "HEARTBEAT" and self._may_move(sysid, speaker, now):
             self._speakers[sysid] = _Speaker(peer, now)  # the vehicle came back elsewhere
+            self.contested.pop(sysid, None)
             return True
         self.ignored += 1
+        contest = self.contested.get(sysid)
+        if contest is None or contest.peer != peer:
+            contest = self.contested[sysid] = Contest(peer, 0, now)
+        contest.packets += 1
+        contest.last = now
         return False
+
+    def _may_move(self, sysid: int, speaker: _Speaker, now: float) -> bool:
+        """A silent system may speak from elsewhere: any, unless pinned; a pinned one
+        only with a valid signature (every packet that reaches here on a signed
+        connection has one)."""
+        silent = now - speaker.heard > RELOCK_AFTER_S
+        return silent and (sysid not in self.pinned or self.signing is not None)
+
+    def relock(self, sysid: int, peer: Peer) -> None:
+        """The operator's word: `sysid` speaks from `peer` from now on."""
+        self._speakers[sysid] = _Speaker(peer, self._loop.time())
+        self.contested.pop(sysid, None)
 
     def _dispatch(self, msg: Message) -> None:
         handler = self._handlers.get(msg.get_srcSystem())
@@ -191,7 +239,12 @@ class MavConnection:
             mavlink2.MAV_TYPE_GCS, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0, mavlink2.MAV_STATE_ACTIVE
         )
         while True:
-            self.send(beat)
+            if self._transport is not None:
+                data = beat.pack(self.codec)
+                speakers = (speaker.peer for speaker in self._speakers.values())
+                for target in dict.fromkeys([*self._transport.peers(), *speakers]):
+                    self._transport.send(data, target)
+            self._parsers.expire()
             await asyncio.sleep(HEARTBEAT_PERIOD_S)
 
     async def close(self) -> None:

@@ -28,6 +28,7 @@ from typing import Protocol
 
 from gcs.mavlink.endpoint import Endpoint
 from gcs.mavlink.errors import LinkError
+from gcs.mavlink.recent import Recent
 
 Peer = tuple[str, int] | None
 """Where bytes came from (UDP address); None for a stream (TCP, memory)."""
@@ -146,7 +147,9 @@ class UdpTransport(ByteTransport):
         super().__init__()
         self._remote = remote
         self._transport: asyncio.DatagramTransport | None = None
-        self._seen: dict[tuple[str, int], None] = {}
+        self._seen: Recent[tuple[str, int], None] = Recent(asyncio.get_running_loop().time)
+        """Who sent lately: a listening port's broadcast goes to them (bounded: anyone
+        can send to a listening port)."""
 
     @classmethod
     async def open(cls, endpoint: Endpoint) -> UdpTransport:
@@ -170,7 +173,7 @@ class UdpTransport(ByteTransport):
         if self._remote is not None and peer[:2] != self._remote:
             self.ignored += 1
             return
-        self._seen[peer] = None
+        self._seen.touch(peer, lambda: None)
         self.deliver(data, peer)
 
     def send(self, data: bytes, peer: Peer = None) -> None:
@@ -184,12 +187,10 @@ class UdpTransport(ByteTransport):
             self._transport.sendto(data, seen)
 
     def peers(self) -> list[Peer]:
-        return [self._remote] if self._remote else list(self._seen)
-
-    def forget(self, peer: Peer) -> None:
-        """Stop broadcasting to a listener's former peer (it proved to be somebody else)."""
-        if peer is not None:
-            self._seen.pop(peer, None)
+        if self._remote:
+            return [self._remote]
+        self._seen.expire()
+        return list(self._seen)
 
     def close(self) -> None:
         if self._transport is not None:

@@ -29,6 +29,7 @@ from gcs.mavlink.transport import TransportOpener, open_transport
 from gcs.mavlink.vehicle_state import VehicleState
 from gcs.service.discovery import Discovery
 from gcs.service.metrics import ServiceMetrics
+from gcs.service.states import StateConflict
 
 log = logging.getLogger("mvo_gcs.vehicles")
 RETRY_S = (0.5, 1.0, 2.0, 5.0)  # back-off between connection attempts
@@ -85,6 +86,31 @@ class VehicleRegistry:
         if entry is not None:
             await _close(entry)
             self._metrics.link_up.remove(vehicle_id)
+            if entry.shared and entry.link is not None and not self._shared_uses(entry.link):
+                entry.link.connection.pinned.discard(entry.link.sysid)
+
+    def _shared_uses(self, link: VehicleLink) -> bool:
+        return any(e.shared and e.link is link for e in self._entries.values())
+
+    def relock(self, vehicle_id: str, address: str) -> None:
+        """The operator's word that the vehicle now speaks from `address`: the address
+        that claimed its system id lately (StateConflict if none did)."""
+        link = self.link_or_none(vehicle_id) or self._last_link(vehicle_id)
+        contest = link.connection.contested.get(link.sysid)
+        if contest is None or contest.address != address:
+            claimed = f"only {contest.address} did" if contest else "no other address did"
+            raise StateConflict(
+                f"vehicle {vehicle_id}: nothing claiming system {link.sysid} came from "
+                f"{address} lately ({claimed}); the vehicle keeps its address"
+            )
+        link.connection.relock(link.sysid, contest.peer)
+        log.warning("vehicle %s: the operator moved it to %s", vehicle_id, address)
+
+    def _last_link(self, vehicle_id: str) -> VehicleLink:
+        entry = self._entries.get(vehicle_id)
+        if entry is None or entry.link is None:
+            raise VehicleOffline(vehicle_id, entry.last_error if entry else "not registered")
+        return entry.link
 
     def link(self, vehicle_id: str) -> VehicleLink:
         """The vehicle's link if it is up now; `VehicleOffline` says why not."""
@@ -211,6 +237,7 @@ class VehicleRegistry:
                 continue
             log.info("vehicle %s connected: %r", vehicle_id, entry.link)
             break
+        entry.link.connection.pinned.add(entry.link.sysid)  # its address moves by the operator
         await self._report(vehicle_id, entry.link)
 
     async def _follow_discovered(self, vehicle_id: str, entry: _Entry) -> None:
@@ -220,6 +247,7 @@ class VehicleRegistry:
             self._metrics.link_up.labels(vehicle_id).set(0)
             await asyncio.sleep(0.2)
         entry.link = link
+        link.connection.pinned.add(link.sysid)  # no other sender takes it over after a silence
         await self._report(vehicle_id, link)
 
     async def _report(self, vehicle_id: str, link: VehicleLink) -> None:
@@ -274,7 +302,21 @@ def describe(link: VehicleLink) -> dict[str, Any]:
         "mission_total": state.mission_total,
         "mission_state": state.mission_state,
         "ignored_packets": link.connection.dropped,
+        "claimed_from": _claimant(link, now),
         "seconds_since_heard": round(max(0.0, now - state.last_heard), 3)
         if state.last_heard
         else None,
+    }
+
+
+def _claimant(link: VehicleLink, now: float) -> dict[str, Any] | None:
+    """Another address sending as this vehicle's system id, if one did: shown, so that the
+    operator sees an impostor (or the vehicle come back elsewhere, to `relock`)."""
+    contest = link.connection.contested.get(link.sysid)
+    if contest is None:
+        return None
+    return {
+        "address": contest.address,
+        "packets": contest.packets,
+        "seconds_ago": round(max(0.0, now - contest.last), 3),
     }

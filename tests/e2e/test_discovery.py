@@ -5,8 +5,15 @@ system id, and one registered from that list flies on the same link."""
 from __future__ import annotations
 
 import socket
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs.mavlink.connection import RELOCK_AFTER_S
+from gcs.mavlink.recent import SENDER_LIMIT
 from planner.cases import load_case
 from sitl_mock import Simulator, VehicleConfig
 from tests.e2e.flying import wait_for
@@ -115,3 +122,126 @@ def test_one_vehicle_reached_on_its_port_and_on_the_listening_port_is_registered
                 assert len(client.get("/vehicles").json()) == 2
         finally:
             service.stop()
+
+
+LONDON_E7 = (515074000, -1278000)
+
+
+def forged(sysid: int) -> bytes:
+    """A HEARTBEAT in GUIDED and a position in London, as vehicle `sysid`."""
+    codec = mavlink2.MAVLink(None, srcSystem=sysid, srcComponent=1)
+    beat = codec.heartbeat_encode(
+        mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0x59, 4, 4
+    )
+    where = codec.global_position_int_encode(10**6, *LONDON_E7, 20_000, 20_000, 0, 0, 0, 0)
+    return bytes(beat.pack(codec)) + bytes(where.pack(codec))
+
+
+@contextmanager
+def impostor(port: int, sysid: int) -> Iterator[socket.socket]:
+    """A local program that keeps sending as vehicle `sysid` to the listening port."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    stop = threading.Event()
+
+    def speak() -> None:
+        while not stop.wait(0.2):
+            sock.sendto(forged(sysid), ("127.0.0.1", port))
+
+    thread = threading.Thread(target=speak, daemon=True)
+    thread.start()
+    try:
+        yield sock
+    finally:
+        stop.set()
+        thread.join()
+        sock.close()
+
+
+def test_a_silent_vehicle_on_the_listening_port_is_not_taken_over(tmp_path: Path) -> None:
+    """Issue 28: after a silence longer than RELOCK_AFTER_S, a program that had waited for
+    it spoke for the vehicle (its position became the vehicle's). A registered vehicle
+    keeps its address; the impostor is shown (`claimed_from`), and only the operator
+    moves the vehicle to it. A signing key is refused there: nothing signs that port."""
+    port = free_udp_port()
+    listen = f"udpin:127.0.0.1:{port}"
+    home = homes_at_starts(load_case("case-1"))[0]
+    config = VehicleConfig(sysid=1, home=home, transport="tcp", outputs=(f"udp:{listen[6:]}",))
+    service = ServiceProcess(tmp_path / "data", {"MVO_GCS_DISCOVERY_URL": listen})
+    with Simulator([config], speedup=20.0, seed=1).running() as sim:
+        service.start()
+        try:
+            with service.client() as client:
+                keyed = {"connection": listen, "sysid": 1, "signing_key": "a passphrase"}
+                refused = client.post("/vehicles", json=keyed)
+                assert refused.status_code == 422, refused.text
+                assert "signing_key" in refused.json()["detail"]
+                answer = client.post("/vehicles", json={"connection": listen, "sysid": 1})
+                assert answer.status_code == 201, answer.text
+                vid = answer.json()["id"]
+
+                def live() -> dict[str, object]:
+                    body: dict[str, object] = client.get(f"/vehicles/{vid}").json()["live"]
+                    return body
+
+                wait_for(lambda: live()["online"] and live()["lat"], 30, "the vehicle heard")
+                silent_until = sim.sim_time + (RELOCK_AFTER_S + 2.0) * 20.0
+                sim.silence(1, silent_until - sim.sim_time)
+                with impostor(port, 1) as sock:
+                    wait_for(lambda: sim.sim_time > silent_until + 20.0, 60, "the silence over")
+                    wait_for(lambda: live()["online"], 30, "the vehicle heard again")
+                    here = live()
+                    assert abs(float(here["lat"]) - home[0]) < 0.001, here  # not London
+                    claimant = here["claimed_from"]
+                    assert isinstance(claimant, dict), here
+                    impostor_at = f"127.0.0.1:{sock.getsockname()[1]}"
+                    assert claimant["address"] == impostor_at
+                    held = client.post(f"/vehicles/{vid}/hold")
+                    assert held.status_code == 200, held.text  # the vehicle answered it
+
+                    wrong = client.post(f"/vehicles/{vid}/address", json={"address": "1.2.3.4:5"})
+                    assert wrong.status_code == 409, wrong.text
+                    moved = client.post(f"/vehicles/{vid}/address", json={"address": impostor_at})
+                    assert moved.status_code == 200, moved.text
+                    wait_for(
+                        lambda: abs(float(live()["lat"] or 0) - LONDON_E7[0] / 1e7) < 0.001,
+                        30,
+                        "the operator's choice taking effect",
+                    )
+        finally:
+            service.stop()
+
+
+def test_a_flood_of_senders_on_the_listening_port_is_bounded(tmp_path: Path) -> None:
+    """Issue 28: every address that ever sent to the listening port kept a parser and got
+    the ground station's HEARTBEAT every second, for ever. Now the service keeps the
+    latest SENDER_LIMIT senders: of 3 x SENDER_LIMIT that each sent once, at most that
+    many hear from it, even after the latest has heard two heartbeats (two rounds)."""
+    port = free_udp_port()
+    listen = f"udpin:127.0.0.1:{port}"
+    service = ServiceProcess(tmp_path / "data", {"MVO_GCS_DISCOVERY_URL": listen})
+    service.start()
+    senders = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(3 * SENDER_LIMIT)]
+    heard = [0] * len(senders)
+    try:
+        for sender in senders:
+            sender.bind(("127.0.0.1", 0))
+            sender.setblocking(False)
+            sender.sendto(b"\xfd\x09not mavlink", ("127.0.0.1", port))
+
+        def listen_once() -> bool:
+            for k, sender in enumerate(senders):
+                try:
+                    while sender.recv(2048):
+                        heard[k] += 1
+                except BlockingIOError:
+                    pass
+            return heard[-1] >= 2
+
+        wait_for(listen_once, 30, "two heartbeats at the latest sender")
+        reached = sum(1 for count in heard if count)
+        assert reached <= SENDER_LIMIT, (reached, heard)
+    finally:
+        for sender in senders:
+            sender.close()
+        service.stop()

@@ -122,6 +122,13 @@ async def register_vehicle(
             "loopback only unless MVO_GCS_LISTEN_BEYOND_LOOPBACK is set"
         )
     resolved = str(await endpoint.resolved())
+    shared = registry.discovery is not None and registry.discovery.serves(resolved)
+    if vehicle.signing_key and shared:
+        raise BadConnection(
+            f"signing_key: {vehicle.connection} is the shared listening port, where the "
+            "service neither signs nor checks signatures; register a signed vehicle on a "
+            "connection of its own (its udpin: port, tcp: or udpout:)"
+        )
     async with registry.registering:
         for spelling in dict.fromkeys((vehicle.connection, resolved)):
             existing = await vehicles.by_connection(spelling, vehicle.sysid)
@@ -210,6 +217,33 @@ async def delete_vehicle(
             )
         await vehicles.delete(vehicle_id)
     await registry.remove(vehicle_id)
+
+
+class AddressIn(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+    address: str = Field(
+        max_length=64,
+        description="HOST:PORT (IPv6 in brackets), as the vehicle's `claimed_from` shows it",
+        examples=["127.0.0.1:14551"],
+    )
+
+
+@router.post(
+    "/{vehicle_id}/address",
+    operation_id="moveVehicleAddress",
+    **mutating({**NOT_FOUND, **CONFLICT}),
+)
+async def move_vehicle_address(
+    vehicle_id: str, body: AddressIn, vehicles: VehiclesDep, registry: RegistryDep
+) -> VehicleOut:
+    """The vehicle now speaks from the address that has lately claimed its system id (its
+    `claimed_from`), as after MAVProxy or a router restarted on a new port. A registered
+    vehicle's address never moves otherwise, however long it is silent: another local
+    program cannot take it over. 409 if that address did not claim it."""
+    row = await vehicles.get(vehicle_id)
+    registry.relock(vehicle_id, body.address)
+    return _out(row, registry)
 
 
 VehicleCommand = Literal["hold", "land", "rtl", "continue"]
