@@ -9,6 +9,7 @@ from pathlib import Path
 import uvicorn
 
 from gcs.service.api.app import create_app
+from gcs.service.http_limits import server_config
 from gcs.service.settings import Settings
 
 
@@ -43,13 +44,5 @@ def run(args: argparse.Namespace) -> int:
 
 
 def serve(settings: Settings) -> None:
-    app = create_app(settings)
-    config = uvicorn.Config(
-        app,
-        host=settings.host,
-        port=settings.port,
-        log_level="info",
-        ws_max_size=settings.max_ws_message_bytes,  # uvicorn's default parks 16 MB a socket
-    )
-    server = uvicorn.Server(config)
+    server = uvicorn.Server(server_config(create_app(settings), settings, log_level="info"))
     server.run()

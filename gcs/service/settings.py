@@ -59,6 +59,18 @@ class Settings(BaseSettings):
         le=16 * 2**20,
         description="the largest WebSocket message a client may send (they only receive)",
     )
+    http_header_timeout_s: float = Field(
+        default=10.0,
+        gt=0,
+        le=300,
+        description="a connection whose request headers are not in by then is closed",
+    )
+    max_connections: int = Field(
+        default=200, ge=8, le=100_000, description="HTTP connections at once; beyond: 503"
+    )
+    max_connections_per_client: int = Field(
+        default=32, ge=1, le=100_000, description="HTTP connections one address may hold"
+    )
     discovery_url: str = Field(
         default="udpin:127.0.0.1:14550",
         description="UDP port where vehicles that announce themselves are heard (as "

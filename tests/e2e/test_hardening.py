@@ -21,6 +21,7 @@ import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
+from tests.e2e.flying import wait_for
 from tests.service_process import TOKEN, ServiceProcess
 
 
@@ -259,3 +260,45 @@ def test_sigterm_ends_the_service_within_seconds(tmp_path: Path) -> None:
         if proc.process is not None and proc.process.poll() is None:
             os.kill(proc.process.pid, signal.SIGKILL)
         proc.process = None
+
+
+def test_half_sent_requests_are_dropped_and_one_address_holds_few(tmp_path: Path) -> None:
+    """Issue 28: 300 half-sent requests were held for 60 s, and with the descriptors gone
+    the API stopped answering. A program at 127.0.0.2 now holds at most its share
+    (MVO_GCS_MAX_CONNECTIONS_PER_CLIENT) while the operator at 127.0.0.1 is answered,
+    and loses even those when their headers are late (MVO_GCS_HTTP_HEADER_TIMEOUT_S)."""
+    share = 8
+    proc = ServiceProcess(
+        tmp_path / "data",
+        {"MVO_GCS_HTTP_HEADER_TIMEOUT_S": "2", "MVO_GCS_MAX_CONNECTIONS_PER_CLIENT": str(share)},
+    )
+    proc.start()
+    held: list[socket.socket] = []
+    try:
+        for _ in range(5 * share):
+            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            sock.bind(("127.0.0.2", 0))
+            sock.connect(("127.0.0.1", proc.port))
+            sock.sendall(b"GET /health/live HTTP/1.1\r\nHost: 127.0.0.1\r\n")  # no end
+            sock.setblocking(False)
+            held.append(sock)
+
+        def still_open() -> int:
+            count = 0
+            for sock in held:
+                try:
+                    count += sock.recv(1) != b""
+                except BlockingIOError:
+                    count += 1
+                except OSError:
+                    pass
+            return count
+
+        wait_for(lambda: still_open() <= share, 30, f"at most {share} held from 127.0.0.2")
+        with proc.client() as client:
+            assert client.get("/health/live").status_code == 200
+        wait_for(lambda: still_open() == 0, 60, "the late headers dropped")
+    finally:
+        for sock in held:
+            sock.close()
+        proc.stop()
