@@ -4,7 +4,8 @@ both optionally signed (`signing.py`)."""
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+import time
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import Any, TypeAlias
 
@@ -24,13 +25,21 @@ class Encoder:
     and signing them when the vehicle has a key."""
 
     def __init__(
-        self, sysid: int, compid: int = VEHICLE_COMPONENT, key: bytes | None = None
+        self,
+        sysid: int,
+        compid: int = VEHICLE_COMPONENT,
+        key: bytes | None = None,
+        wall: Callable[[], float] = time.time,
     ) -> None:
         self._mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        self._signs = key is not None
+        self._wall = wall
         if key is not None:
-            signing.sign_outgoing(self._mav, key)
+            signing.sign_outgoing(self._mav, key, wall())
 
     def encode(self, msg: Message) -> bytes:
+        if self._signs:  # ArduPilot keeps its signing clock current; pymavlink only counts
+            signing.keep_current(self._mav, self._wall())
         buf = msg.pack(self._mav)
         self._mav.seq = (self._mav.seq + 1) % 256
         return buf

@@ -39,12 +39,19 @@ def signing_timestamp(wall_time: float | None = None) -> int:
     return int((now - SIGNING_EPOCH) * 100_000)
 
 
-def sign_outgoing(mav: mavlink.MAVLink, key: bytes) -> None:
+def sign_outgoing(mav: mavlink.MAVLink, key: bytes, wall_time: float | None = None) -> None:
     """Make `mav` sign every packet it packs from now on."""
     mav.signing.secret_key = key
     mav.signing.sign_outgoing = True
     mav.signing.link_id = 0
-    mav.signing.timestamp = signing_timestamp()
+    mav.signing.timestamp = signing_timestamp(wall_time)
+
+
+def keep_current(mav: mavlink.MAVLink, wall_time: float) -> None:
+    """The next packet's timestamp: now, or one tick past the last if that is later.
+    pymavlink alone adds one tick (10 µs) a packet, so a stream falls behind the clock
+    and after a minute a receiver that starts listening refuses it ("bad new stream")."""
+    mav.signing.timestamp = max(mav.signing.timestamp, signing_timestamp(wall_time))
 
 
 def require_signed(mav: mavlink.MAVLink, key: bytes) -> None:

@@ -89,6 +89,7 @@ async def first_autopilot_heartbeat(
         who = f"autopilot {sysid}" if sysid is not None else "an autopilot"
         raise ConnectTimeoutError(
             f"no HEARTBEAT from {who} on {connection.name} within {timeout:.1f} s"
+            f"{connection.refusals()}"
         ) from None
     finally:
         stop()

@@ -28,6 +28,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.endpoint import Endpoint
 from gcs.mavlink.recent import Recent
+from gcs.mavlink.signature_check import TICKS_PER_S, why_refused
 from gcs.mavlink.transport import ByteTransport, Peer, TransportOpener, open_transport
 
 GCS_SYSID = 255
@@ -66,7 +67,12 @@ class Signing:
         codec.signing.link_id = self.link_id
         codec.signing.sign_outgoing = outgoing
         codec.signing.allow_unsigned_callback = None  # unsigned packets are refused
-        codec.signing.timestamp = int((time.time() - SIGNING_EPOCH) * 100_000)
+        codec.signing.timestamp = signing_now()
+
+
+def signing_now() -> int:
+    """Now in signing units: a protocol timestamp, so the wall clock, not the loop's."""
+    return int((time.time() - SIGNING_EPOCH) * TICKS_PER_S)
 
 
 @dataclass
@@ -114,6 +120,8 @@ class MavConnection:
         if signing is not None:
             signing.apply(self.codec, outgoing=True)
         self.ignored = 0  # packets dropped: a spoofed sender, a bad or missing signature
+        self.signature_refusals = 0
+        self.last_refusal = ""  # why the latest packet was refused for its signature
         self._transport: ByteTransport | None = transport
         self._loop = asyncio.get_running_loop()
         self._parsers: Recent[Peer, Any] = Recent(self._loop.time)
@@ -158,10 +166,28 @@ class MavConnection:
         parser = self._parsers.touch(peer, self._new_parser)
         for msg in parser.parse_buffer(data) or ():
             if msg.get_type() == "BAD_DATA":
-                self.ignored += int(self.signing is not None and _is_packet(msg))
+                if self.signing is not None and _is_packet(msg):
+                    self._refused(msg, parser)
                 continue
             if self._admitted(msg, peer):
                 self._dispatch(msg)
+
+    def _refused(self, bad: Message, parser: Any) -> None:
+        assert self.signing is not None
+        self.ignored += 1
+        self.signature_refusals += 1
+        self.last_refusal = why_refused(
+            bytes(bad.data), self.signing.key, int(parser.signing.timestamp)
+        )
+
+    def refusals(self) -> str:
+        """What signature refusals there were, as a clause for an error ("" if none)."""
+        if not self.signature_refusals:
+            return ""
+        return (
+            f"; {self.signature_refusals} packets were refused for their signature, the "
+            f"latest {self.last_refusal}"
+        )
 
     def _admitted(self, msg: Message, peer: Peer) -> bool:
         """True unless the message claims a system that speaks from another address."""
@@ -226,7 +252,7 @@ class MavConnection:
         """Pack with our identity and send to the vehicle `sysid` (or to every peer)."""
         if self._transport is None:
             return
-        data = msg.pack(self.codec)
+        data = self._pack(msg)
         speaker = self._speakers.get(sysid) if sysid is not None else None
         if speaker is not None:
             self._transport.send(data, speaker.peer)
@@ -234,13 +260,21 @@ class MavConnection:
         for target in self._transport.peers():
             self._transport.send(data, target)
 
+    def _pack(self, msg: Message) -> bytes:
+        """Packed with our identity; signed with a current timestamp, as ArduPilot keeps
+        its own (pymavlink adds one tick a packet, which falls behind the clock: after a
+        minute a receiver that starts listening refuses the stream)."""
+        if self.signing is not None:
+            self.codec.signing.timestamp = max(self.codec.signing.timestamp, signing_now())
+        return bytes(msg.pack(self.codec))
+
     async def _send_heartbeats(self) -> None:
         beat = self.codec.heartbeat_encode(
             mavlink2.MAV_TYPE_GCS, mavlink2.MAV_AUTOPILOT_INVALID, 0, 0, mavlink2.MAV_STATE_ACTIVE
         )
         while True:
             if self._transport is not None:
-                data = beat.pack(self.codec)
+                data = self._pack(beat)
                 speakers = (speaker.peer for speaker in self._speakers.values())
                 for target in dict.fromkeys([*self._transport.peers(), *speakers]):
                     self._transport.send(data, target)

@@ -120,7 +120,8 @@ class VehicleRegistry:
         if entry.link is None:
             raise VehicleOffline(vehicle_id, entry.last_error)
         if not entry.link.state.link_up:
-            raise VehicleOffline(vehicle_id, "no HEARTBEAT lately (link lost)")
+            refusals = entry.link.connection.refusals()
+            raise VehicleOffline(vehicle_id, f"no HEARTBEAT lately (link lost){refusals}")
         return entry.link
 
     def link_or_none(self, vehicle_id: str) -> VehicleLink | None:
