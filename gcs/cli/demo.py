@@ -13,7 +13,7 @@ import json
 from pathlib import Path
 
 from gcs.cli.serve import add_arguments as add_serve_arguments
-from gcs.cli.serve import serve, settings_from
+from gcs.cli.serve import serve, settings_from, upgrade_storage
 from gcs.mavlink.endpoint import Endpoint
 from gcs.mission.geodesy import GridFrame
 from gcs.service.settings import Settings
@@ -43,6 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     settings = settings_from(args).model_copy(update={"show_token": True})
+    upgrade_storage(settings)
     scenario = load_scenario(args.scenario.read_text()) if args.scenario else load_case("case-6")
     simulator = vehicles_at_starts(scenario, args.speedup, args.base_port)
     with simulator.running():

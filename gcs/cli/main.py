@@ -28,7 +28,17 @@ class MissingDependency(Exception):
     """A command needs an optional dependency that is not installed."""
 
 
-USER_ERRORS = (OptimizerInputError, ObjectiveError, ScenarioFileError, MissingDependency)
+class StorageRefused(Exception):
+    """The service's database cannot be used by this version (a newer one migrated it)."""
+
+
+USER_ERRORS = (
+    OptimizerInputError,
+    ObjectiveError,
+    ScenarioFileError,
+    MissingDependency,
+    StorageRefused,
+)
 """Errors a user can cause: reported in one line, exit code 2, no traceback."""
 
 

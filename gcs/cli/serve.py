@@ -8,9 +8,12 @@ from pathlib import Path
 
 import uvicorn
 
+from gcs.cli.main import StorageRefused
 from gcs.service.api.app import create_app
 from gcs.service.http_limits import server_config
 from gcs.service.settings import Settings
+from gcs.service.storage import Database
+from gcs.service.storage.schema import SchemaTooNew
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,8 +42,19 @@ def settings_from(args: argparse.Namespace) -> Settings:
 def run(args: argparse.Namespace) -> int:
     os.umask(0o077)  # the database's journal files too: the owner's only
     settings = settings_from(args)
+    upgrade_storage(settings)
     serve(settings)
     return 0
+
+
+def upgrade_storage(settings: Settings) -> None:
+    """Bring the database to this version's schema before serving, so that one a newer
+    mvo-gcs has migrated is refused in one line (exit 2), not by a traceback from the
+    server's start-up."""
+    try:
+        Database(settings.resolved_database_url).close()
+    except SchemaTooNew as exc:
+        raise StorageRefused(str(exc)) from exc
 
 
 def serve(settings: Settings) -> None:

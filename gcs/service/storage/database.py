@@ -1,5 +1,7 @@
 """Engine, sessions, the storage threads, and the recovery that runs when the service starts.
 
+Opening a database upgrades its schema first (`schema.upgrade`).
+
 Every storage call runs on the database's own threads, never on the event loop: a
 SQLite write costs milliseconds and a PostgreSQL one a network round trip, either of
 which would stall every vehicle link for as long. `Database.run` is the one door; the
@@ -17,12 +19,13 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
-from sqlalchemy import Engine, create_engine, event, inspect, text, update
+from sqlalchemy import Engine, create_engine, event, update
 from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
 
 from gcs.service.states import OPEN, FlightState, JobState
-from gcs.service.storage.tables import Base, FlightRow, JobRow, now
+from gcs.service.storage import schema
+from gcs.service.storage.tables import FlightRow, JobRow, now
 
 T = TypeVar("T")
 STORAGE_THREADS = 4
@@ -42,8 +45,11 @@ class Database:
         )
         if is_sqlite:
             event.listen(self.engine, "connect", _sqlite_pragmas)
-        Base.metadata.create_all(self.engine)
-        _add_missing_columns(self.engine)
+        try:
+            schema.upgrade(self.engine)
+        except BaseException:  # SchemaTooNew (a newer mvo-gcs migrated it), or unreachable
+            self.engine.dispose()
+            raise
         self._sessions = sessionmaker(self.engine, expire_on_commit=False)
         self._threads = ThreadPoolExecutor(STORAGE_THREADS, thread_name_prefix="storage")
 
@@ -90,23 +96,6 @@ class Database:
 def rowcount(result: Any) -> int:
     """How many rows a DELETE or UPDATE touched (a CursorResult's, untyped in Result)."""
     return int(result.rowcount)
-
-
-def _add_missing_columns(engine: Engine) -> None:
-    """Columns added since a data directory was made, added to its tables (nullable or
-    with a default, so the rows already there stay valid)."""
-    existing = inspect(engine)
-    with engine.begin() as connection:
-        for table in Base.metadata.sorted_tables:
-            have = {column["name"] for column in existing.get_columns(table.name)}
-            for column in table.columns:
-                if column.name in have:
-                    continue
-                kind = column.type.compile(engine.dialect)
-                default = " DEFAULT ''" if column.server_default is not None else ""
-                connection.execute(
-                    text(f'ALTER TABLE {table.name} ADD COLUMN "{column.name}" {kind}{default}')
-                )
 
 
 def _private_sqlite_file(url: str) -> None:

@@ -1,5 +1,6 @@
 """The stored records. JSON columns hold the pydantic models' own JSON, so the API and
-the store agree on one schema."""
+the store agree on one schema. A change here needs a migration (migrations/versions/);
+the tests check that the two agree."""
 
 from __future__ import annotations
 
@@ -7,7 +8,17 @@ import uuid
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, DateTime, Float, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy import (
+    JSON,
+    DateTime,
+    Float,
+    ForeignKey,
+    Index,
+    Integer,
+    String,
+    Text,
+    UniqueConstraint,
+)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 
@@ -99,3 +110,4 @@ class EventRow(Base):
     uav_id: Mapped[str | None] = mapped_column(String(64), nullable=True)
     data: Mapped[dict[str, Any]]
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
+    __table_args__ = (Index("ix_events_flight_id_id", "flight_id", "id"),)  # a flight's page
