@@ -57,21 +57,46 @@ def status(answer: bytes) -> int:
 
 
 def test_an_unknown_host_is_refused(service: ServiceProcess) -> None:
-    evil = httpx.get(f"{service.url}/scenarios", headers={"Host": "rebind.example"})
-    assert evil.status_code == 400 and "unknown host" in evil.json()["detail"]
+    for name in ("rebind.example", "[::1]evil.example", "127.0.0.1@evil.example", "[::1"):
+        evil = httpx.get(f"{service.url}/scenarios", headers={"Host": name})
+        assert evil.status_code == 400 and "unknown host" in evil.json()["detail"], name
     for host in (f"127.0.0.1:{service.port}", f"localhost:{service.port}"):
         assert httpx.get(f"{service.url}/scenarios", headers={"Host": host}).status_code == 200
 
 
 def test_a_websocket_from_a_foreign_origin_is_refused(service: ServiceProcess) -> None:
     url = service.url.replace("http", "ws") + "/jobs/nope/live"
-    with pytest.raises(InvalidStatus):
-        connect(url, origin="http://rebind.example", open_timeout=10)  # type: ignore[arg-type]
+    for foreign in ("http://rebind.example", "http://127.0.0.1:9999", "file://"):
+        with pytest.raises(InvalidStatus):  # another site, another local web app, a file
+            connect(url, origin=foreign, open_timeout=10)  # type: ignore[arg-type]
     ours = f"http://127.0.0.1:{service.port}"
     socket_ = connect(url, origin=ours, open_timeout=10)  # type: ignore[arg-type]
     with socket_, pytest.raises(ConnectionClosed) as closed:
         socket_.recv(timeout=10)
     assert closed.value.rcvd is not None and closed.value.rcvd.code == 4404  # no such job
+
+
+def test_no_page_of_the_service_can_be_framed(service: ServiceProcess) -> None:
+    """Clickjacking: the API docs had no frame protection, and the console's CSP let the
+    page open WebSockets to any host."""
+    for path in ("/docs", "/", "/health/live", "/openapi.json"):
+        answer = httpx.get(f"{service.url}{path}")
+        assert answer.headers["x-frame-options"] == "DENY", path
+        assert "frame-ancestors 'none'" in answer.headers["content-security-policy"], path
+    console = httpx.get(f"{service.url}/").headers["content-security-policy"]
+    assert "connect-src 'self';" in console and "ws:" not in console
+
+
+def test_a_wrong_method_names_the_right_ones(service: ServiceProcess) -> None:
+    auth = {"Authorization": f"Bearer {TOKEN}"}
+    for method, path, allowed in [
+        ("PUT", "/scenarios", "GET, POST"),
+        ("POST", "/health/live", "GET"),
+        ("POST", "/console/index.html", "GET, HEAD"),
+    ]:
+        answer = httpx.request(method, f"{service.url}{path}", headers=auth)
+        assert answer.status_code == 405, (method, path)
+        assert answer.headers["allow"] == allowed, (method, path)
 
 
 # --- bounded bodies, as they come over the wire ---------------------------------------

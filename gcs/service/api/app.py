@@ -11,7 +11,7 @@ from fastapi import FastAPI, Request
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.routing import Route
+from starlette.routing import Match, Mount
 
 from gcs.mavlink.connection import Signing
 from gcs.mavlink.endpoint import EndpointError
@@ -46,6 +46,8 @@ to the vehicles, flies the fleet together and streams its telemetry.
 
 Reading is open; every request that changes state needs `Authorization: Bearer <token>`.
 """
+
+HTTP_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE")
 
 
 def create_app(
@@ -120,10 +122,18 @@ def _private_directory(path: Path) -> None:
 
 
 def _methods_at(request: Request) -> list[str]:
+    """Every method some route answers at the request's path, asked of the routes
+    themselves (included routers too); a mount serves files: GET and HEAD."""
     methods: set[str] = set()
-    for route in request.app.routes:
-        if isinstance(route, Route) and route.path_regex.match(request.url.path):
-            methods |= route.methods or set()
+    scope = {"type": "http", "path": request.url.path, "root_path": "", "method": "GET"}
+    for route in request.app.router.routes:
+        if isinstance(route, Mount):
+            if route.matches(scope)[0] == Match.FULL:
+                methods |= {"GET", "HEAD"}
+            continue
+        for method in HTTP_METHODS:
+            if route.matches({**scope, "method": method})[0] == Match.FULL:
+                methods.add(method)
     return sorted(methods)
 
 

@@ -1,7 +1,8 @@
 """What every request passes before the application sees it, in this order:
 
 1. its Host is one of the service's names (a DNS-rebinding page cannot read the API),
-   and a WebSocket's Origin, when a browser sends one, is one of its origins;
+   and a WebSocket's Origin, when a browser sends one, is the page's own (same host and
+   port as the Host); no response may be framed by another page (clickjacking);
 2. a request that changes state carries the bearer token (checked before any byte of its
    body is read, so an unauthenticated client cannot make the service parse anything);
 3. its body is at most `max_bytes` (413, whether announced or chunked) and arrives within
@@ -76,7 +77,7 @@ class RequestGuard:
         except Refusal as refusal:
             await _refuse(scope, send, refusal)
             return
-        await self.app(scope, _replay(body, receive), send)
+        await self.app(scope, _replay(body, receive), _not_framed(send))
 
     def _check_host(self, headers: dict[str, str]) -> None:
         host = _host_name(headers.get("host", ""))
@@ -85,11 +86,16 @@ class RequestGuard:
             raise Refusal(400, f"unknown host {host!r}: this service answers to {known}")
 
     def _check_origin(self, headers: dict[str, str]) -> None:
+        """A browser's WebSocket comes from a page of this service: its Origin names the
+        same host and port as the request's Host (another local web app, on another
+        port, is another origin)."""
         origin = headers.get("origin")
         if origin is None:
             return  # not a browser: nothing to rebind
-        host = _host_name(origin.split("://", 1)[-1].split("/", 1)[0])
-        if host not in self.hosts:
+        scheme, _, authority = origin.partition("://")
+        if scheme not in ("http", "https") or _authority(authority) != _authority(
+            headers.get("host", "")
+        ):
             raise Refusal(403, f"WebSocket from origin {origin!r} refused")
 
     def _check_token(self, headers: dict[str, str]) -> None:
@@ -197,12 +203,38 @@ def _problem(path: Path, message: str) -> dict[str, Any]:
     return {"loc": list(path), "msg": message, "type": "value_error"}
 
 
+HOST = re.compile(r"(?:\[(?P<v6>[0-9a-f:.]+)\]|(?P<name>[^:\[\]/@\s]+))(?::(?P<port>\d{1,5}))?")
+
+
+def _authority(text: str) -> tuple[str, str] | None:
+    """`127.0.0.1:8000` -> ("127.0.0.1", "8000"), `[::1]` -> ("::1", ""), lower case;
+    None for anything else (`[::1]evil.example`, a path, user info)."""
+    match = HOST.fullmatch(text.strip().lower())
+    if match is None:
+        return None
+    return match["v6"] or match["name"], match["port"] or ""
+
+
 def _host_name(host: str) -> str:
-    """`127.0.0.1:8000` -> `127.0.0.1`, `[::1]:8000` -> `::1`, lower case."""
-    host = host.strip().lower()
-    if host.startswith("["):
-        return host[1 : host.find("]")] if "]" in host else host
-    return host.rsplit(":", 1)[0] if host.count(":") == 1 else host
+    authority = _authority(host)
+    return authority[0] if authority else ""
+
+
+def _not_framed(send: Send) -> Send:
+    """Every response refuses to be shown in another page's frame (the console's own CSP
+    says so too; the API docs have none)."""
+
+    async def guarded(message: Message) -> None:
+        if message["type"] == "http.response.start":
+            headers = list(message.get("headers", []))
+            names = {name.lower() for name, _ in headers}
+            headers.append((b"x-frame-options", b"DENY"))
+            if b"content-security-policy" not in names:
+                headers.append((b"content-security-policy", b"frame-ancestors 'none'"))
+            message = {**message, "headers": headers}
+        await send(message)
+
+    return guarded
 
 
 def _replay(body: bytes, receive: Receive) -> Receive:

@@ -28,7 +28,7 @@ SWAGGER = f"{ASSETS}/vendor/swagger-ui"
 # Everything the page may fetch comes from this service; map tiles, when configured, are
 # the one exception, so their origin is added to img-src.
 _CSP = (
-    "default-src 'self'; img-src 'self' data: {tiles}; connect-src 'self' ws: wss:; "
+    "default-src 'self'; img-src 'self' data: {tiles}; connect-src 'self'; "
     "style-src 'self' 'unsafe-inline'; script-src 'self'; object-src 'none'; "
     "base-uri 'none'; frame-ancestors 'none'"
 )
