@@ -26,6 +26,7 @@ from gcs.service.storage import (
     VehicleRepository,
     schema,
 )
+from gcs.service.storage.migrations.__main__ import draft
 from gcs.service.storage.tables import Base, FlightRow
 
 # What `Base.metadata.create_all` made before versioning (tables.py at 4f50095), in each
@@ -143,6 +144,16 @@ def test_the_models_and_the_migrations_agree(database_url: str) -> None:
         assert _user_tables(engine) == set(Base.metadata.tables)
     finally:
         engine.dispose()
+
+
+def test_a_draft_revision_against_head_is_empty(tmp_path: Path) -> None:
+    """The developer's tool (python -m gcs.service.storage.migrations) finds nothing to
+    add when tables.py and the revisions agree, and numbers its draft after the head."""
+    path = draft("nothing new", f"sqlite:///{tmp_path / 'draft.db'}", tmp_path)
+    assert path.name == f"{int(schema.head()) + 1:04d}_nothing_new.py"
+    body = path.read_text()
+    assert f"down_revision = {schema.head()!r}" in body
+    assert "op." not in body.replace("from alembic import op", ""), body
 
 
 def _head_era_database(url: str, lacking: dict[str, str]) -> None:

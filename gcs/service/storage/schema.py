@@ -10,6 +10,7 @@ migrated is not touched: this code cannot know what its tables mean.
 from __future__ import annotations
 
 import functools
+import logging
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,7 @@ from sqlalchemy import Connection, Engine, func, select
 
 from gcs.service.storage.tables import Base
 
+log = logging.getLogger("mvo_gcs")
 MIGRATIONS = Path(__file__).with_name("migrations")
 UPGRADE_LOCK = 0x6D766F676373  # "mvogcs"
 """PostgreSQL advisory lock held while migrating: two services starting on one database
@@ -80,6 +82,7 @@ def upgrade(engine: Engine) -> None:
                 "or give this one another database (MVO_GCS_DATABASE_URL or --data-dir); "
                 "nothing was changed"
             )
+        log.info("upgrading the database schema from %s to %s", found or "none", head())
         _upgrade(connection)
 
 
