@@ -1,17 +1,23 @@
-"""What the fleet reports while it works: plain dataclasses, fanned out to every listener.
+"""What the fleet reports while it works: plain dataclasses, fanned out to sinks and listeners.
 
-A terminal display, a test or a WebSocket each call `EventBus.listen()` and read the
-same events at their own pace; a slow listener loses its oldest events, never stalls
-the flight.
+Events are published from the flight's tick, which must never wait. What must see every
+event (the service's flight record) is a *sink*: called in `publish` itself, in order,
+and it must be quick. A terminal display, a test or a live stream each call
+`EventBus.listen()` and read the same events at their own pace from a bounded queue; a
+slow listener loses its oldest events, never stalls the flight, and each one it loses
+is counted (`Listener.dropped`).
 """
 
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator
+import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from gcs.fleet.route_tracker import VehicleProgress
+
+log = logging.getLogger("mvo_gcs.fleet")
 
 
 @dataclass(frozen=True)
@@ -136,37 +142,83 @@ class FlightEnded(FleetEvent):
     outcome: str = "landed"  # "landed", "aborted", "timeout", "failed"
 
 
+class Listener:
+    """One listener's bounded queue: when it is full the oldest event is dropped and
+    counted in `dropped`, so that a slow listener never stalls the flight and its loss is
+    known."""
+
+    def __init__(self, bus: EventBus, maxsize: int) -> None:
+        self._bus = bus
+        self._queue: asyncio.Queue[FleetEvent | None] = asyncio.Queue(maxsize)
+        self.dropped = 0
+
+    def put(self, event: FleetEvent | None) -> None:
+        if self._queue.full():
+            self._queue.get_nowait()
+            self.dropped += 1
+        self._queue.put_nowait(event)
+
+    def __aiter__(self) -> Listener:
+        return self
+
+    async def __anext__(self) -> FleetEvent:
+        event = await self._queue.get() if self in self._bus.listeners else None
+        if event is None:
+            self.close()
+            raise StopAsyncIteration
+        return event
+
+    def close(self) -> None:
+        """Stop listening (the iteration ends)."""
+        if self in self._bus.listeners:
+            self._bus.listeners.remove(self)
+
+
+Sink = Callable[[FleetEvent], None]
+
+
 class EventBus:
+    """Every event to every sink (all of them, in order: what must be kept, such as the
+    flight's record) and to every listener (as many as its queue holds: displays)."""
+
     def __init__(self, maxsize: int = 1000) -> None:
-        self._queues: list[asyncio.Queue[FleetEvent | None]] = []
+        self.listeners: list[Listener] = []
+        self._sinks: list[Sink] = []
         self._maxsize = maxsize
         self._closed = False
+
+    @property
+    def dropped(self) -> int:
+        """Events the current listeners have lost."""
+        return sum(listener.dropped for listener in self.listeners)
 
     def publish(self, event: FleetEvent) -> None:
         if not event.at:
             object.__setattr__(event, "at", asyncio.get_running_loop().time())
-        for queue in self._queues:
-            if queue.full():
-                queue.get_nowait()
-            queue.put_nowait(event)
+        for sink in self._sinks:
+            try:
+                sink(event)
+            except Exception:  # a sink's fault must not stop the flight's tick
+                log.exception("an event sink failed on %s", type(event).__name__)
+        for listener in self.listeners:
+            listener.put(event)
 
-    async def listen(self) -> AsyncIterator[FleetEvent]:
-        """Every event from now until `close()`."""
-        queue: asyncio.Queue[FleetEvent | None] = asyncio.Queue(self._maxsize)
-        self._queues.append(queue)
-        try:
-            while not self._closed or not queue.empty():
-                event = await queue.get()
-                if event is None:
-                    return
-                yield event
-        finally:
-            self._queues.remove(queue)
+    def sink(self, sink: Sink) -> None:
+        """Call `sink(event)` with every event from now on, in order, in `publish` itself:
+        nothing is dropped, so `sink` must be quick and never wait (it runs in the flight's
+        tick)."""
+        self._sinks.append(sink)
+
+    def listen(self) -> Listener:
+        """Every event from now until `close()`, as many as the listener's queue holds."""
+        listener = Listener(self, self._maxsize)
+        if self._closed:
+            listener.put(None)
+        self.listeners.append(listener)
+        return listener
 
     def close(self) -> None:
         """End every listener's iteration (after the events already queued)."""
         self._closed = True
-        for queue in self._queues:
-            if queue.full():
-                queue.get_nowait()
-            queue.put_nowait(None)
+        for listener in self.listeners:
+            listener.put(None)

@@ -14,11 +14,11 @@ behind.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator
+from collections.abc import Callable
 
 from gcs.fleet import interventions, launch
 from gcs.fleet.crew import Crew, Fallback, FleetSettings
-from gcs.fleet.events import EventBus, FleetEvent, Uploaded, VehicleFailed
+from gcs.fleet.events import EventBus, FleetEvent, Listener, Uploaded, VehicleFailed
 from gcs.fleet.follower import FlightReport, Follower
 from gcs.fleet.gatekeeper import GateCommander, Gatekeeper
 from gcs.fleet.member import Member
@@ -75,9 +75,15 @@ class Fleet:
 
     # --- what the flight shows ---------------------------------------------------------
 
-    def events(self) -> AsyncIterator[FleetEvent]:
-        """Every event from now on; the iteration ends when the flight is closed."""
+    def events(self) -> Listener:
+        """Every event from now on, as many as a bounded queue holds (`dropped` counts
+        the others); the iteration ends when the flight is closed."""
         return self.crew.bus.listen()
+
+    def record(self, sink: Callable[[FleetEvent], None]) -> None:
+        """Hand every event from now on to `sink`, in order, none dropped: it is called
+        in the flight's tick, so it must be quick and never wait."""
+        self.crew.bus.sink(sink)
 
     def progress(self) -> tuple[VehicleProgress, ...]:
         return self.crew.progress()

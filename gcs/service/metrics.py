@@ -47,6 +47,41 @@ class ServiceMetrics:
             ["outcome"],
             registry=self.registry,
         )
+        self.events_pending = Gauge(
+            "mvo_gcs_events_pending",
+            "flight events recorded and not yet stored (in memory, being written or spilled)",
+            registry=self.registry,
+        )
+        self.events_spilled = Gauge(
+            "mvo_gcs_events_spilled",
+            "of them, those in the spill file: storage fell behind by more than memory holds",
+            registry=self.registry,
+        )
+        self.events_oldest_pending = Gauge(
+            "mvo_gcs_events_oldest_pending_seconds",
+            "how long ago the oldest flight event not yet stored was recorded",
+            registry=self.registry,
+        )
+        self.events_written = Counter(
+            "mvo_gcs_events_written", "flight events stored", registry=self.registry
+        )
+        self.event_store_failures = Counter(
+            "mvo_gcs_event_store_failures",
+            "writes of a batch of flight events that storage refused (each is tried again)",
+            registry=self.registry,
+        )
+        self.events_discarded = Counter(
+            "mvo_gcs_events_discarded",
+            "flight events left out: their flight was deleted before they were stored, or a "
+            "crash cut their line in the spill file short",
+            registry=self.registry,
+        )
+        self.live_dropped = Counter(
+            "mvo_gcs_live_messages_dropped",
+            "live-stream messages dropped for a WebSocket client too slow to take them "
+            "(the client is told how many)",
+            registry=self.registry,
+        )
 
     def render(self) -> bytes:
         return generate_latest(self.registry)

@@ -47,6 +47,13 @@ class Settings(BaseSettings):
         default=120.0, gt=0, description="cap on the time budget of one plan request"
     )
     live_rate_hz: float = Field(default=10.0, gt=0, le=50)
+    event_memory_rows: int = Field(
+        default=10_000,
+        ge=1,
+        le=10_000_000,
+        description="flight events kept in memory while storage is behind; beyond them they "
+        "wait in <data dir>/event-spill.jsonl, none dropped",
+    )
     max_live_sockets: int = Field(
         default=64, ge=1, le=10_000, description="live WebSockets open at once, in all"
     )

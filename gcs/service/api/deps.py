@@ -20,6 +20,7 @@ from gcs.service.api.live_sockets import LiveSockets
 from gcs.service.api.schemas import Problem
 from gcs.service.discovery import Discovery
 from gcs.service.flights.book import FlightBook
+from gcs.service.flights.event_spill import EventSpill
 from gcs.service.flights.event_writer import EventWriter
 from gcs.service.flights.operator import OperatorCommands
 from gcs.service.flights.service import FlightService
@@ -68,7 +69,8 @@ class Services:
         vehicles, flight_records = VehicleRepository(db), FlightRepository(db)
         discovery = discovery_for(settings, opener)
         registry = VehicleRegistry(metrics, discovery=discovery, opener=opener)
-        events = EventWriter(flight_records)
+        spill = EventSpill(settings.data_dir / "event-spill.jsonl")
+        events = EventWriter(flight_records, spill, metrics, settings.event_memory_rows)
         flights = FlightService(
             book=FlightBook(flight_records, events, registry.same_vehicles),
             plans=plans,

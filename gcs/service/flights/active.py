@@ -3,7 +3,6 @@ and the plan as flown."""
 
 from __future__ import annotations
 
-import asyncio
 import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
@@ -15,7 +14,7 @@ from planner.live_replan import NewObject
 from planner.plan import Plan
 from planner.scenario import Scenario
 
-LISTENER_QUEUE = 1000
+LISTENER_QUEUE = 1000  # live messages kept for one slow client (the default)
 
 
 @dataclass(frozen=True)
@@ -40,7 +39,6 @@ class ActiveFlight:
     options: dict[str, Any]
     pace_factor: float  # the flight's clock runs this much slower than the plan's
     objects: list[NewObject] = field(default_factory=list)  # reported during the flight
-    pump: asyncio.Task[None] | None = None  # fleet events to storage and listeners
 
     def uav_of(self, vehicle_id: str) -> str | None:
         return next((uav for uav, vid in self.vehicles.items() if vid == vehicle_id), None)

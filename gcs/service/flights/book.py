@@ -16,6 +16,7 @@ from typing import Any
 
 from gcs.service.flights.active import LISTENER_QUEUE, ActiveFlight
 from gcs.service.flights.event_writer import EventWriter
+from gcs.service.flights.live_queue import LiveQueue
 from gcs.service.flights.slot import FlightSlot
 from gcs.service.states import FlightState, StateConflict
 from gcs.service.storage import FlightRepository
@@ -37,7 +38,7 @@ class FlightBook:
         self._slots: dict[str, FlightSlot] = {}
         self._states: dict[str, FlightState] = {}
         self._bindings: dict[str, dict[str, str]] = {}
-        self._listeners: dict[str, set[asyncio.Queue[dict[str, Any]]]] = {}
+        self._listeners: dict[str, set[LiveQueue]] = {}
         self.claims = asyncio.Lock()  # ownership checks and the claims they allow
 
     def slot(self, flight_id: str) -> FlightSlot:
@@ -70,13 +71,14 @@ class FlightBook:
         self.tell(flight_id, message)
         return row
 
-    def listen(self, flight_id: str) -> asyncio.Queue[dict[str, Any]]:
-        """Every live message about the flight from now on, whatever state it is in."""
-        queue: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=LISTENER_QUEUE)
+    def listen(self, flight_id: str) -> LiveQueue:
+        """Every live message about the flight from now on, whatever state it is in, as
+        many as the queue holds (and a `dropped` notice for the others)."""
+        queue = LiveQueue(LISTENER_QUEUE, self.events.metrics.live_dropped.inc)
         self._listeners.setdefault(flight_id, set()).add(queue)
         return queue
 
-    def unlisten(self, flight_id: str, queue: asyncio.Queue[dict[str, Any]]) -> None:
+    def unlisten(self, flight_id: str, queue: LiveQueue) -> None:
         listeners = self._listeners.get(flight_id)
         if listeners is not None:
             listeners.discard(queue)
@@ -84,11 +86,10 @@ class FlightBook:
                 del self._listeners[flight_id]
 
     def tell(self, flight_id: str, message: dict[str, Any]) -> None:
-        """Give a message to the flight's listeners; a slow one loses its oldest messages."""
+        """Give a message to the flight's listeners; a slow one loses its oldest messages,
+        counted, and is told so."""
         for queue in list(self._listeners.get(flight_id, ())):
-            if queue.full():
-                queue.get_nowait()
-            queue.put_nowait(message)
+            queue.put(message)
 
     async def owners(self, vehicle_ids: Iterable[str], excluding: str) -> dict[str, FlightRow]:
         """vehicle id -> the other open flight that owns it, under any registration."""

@@ -15,10 +15,11 @@ import asyncio
 import contextlib
 import dataclasses
 import logging
+from collections.abc import Callable
 from typing import Any
 
 from gcs.fleet.crew import FleetSettings
-from gcs.fleet.events import Progress
+from gcs.fleet.events import FleetEvent, Progress
 from gcs.fleet.fleet import Fleet
 from gcs.fleet.outcome import VehicleOutcome
 from gcs.fleet.vehicle_limits import read_limits
@@ -29,6 +30,7 @@ from gcs.mission.files import plan_document
 from gcs.mission.flight_plan import FlightPlan, flight_plan
 from gcs.service.flights.active import ActiveFlight, VehicleAnswer, event_json
 from gcs.service.flights.book import FlightBook
+from gcs.service.flights.live_queue import LiveQueue
 from gcs.service.flights.slot import Preempted
 from gcs.service.live_replanning import replan_flight
 from gcs.service.metrics import ServiceMetrics
@@ -151,7 +153,7 @@ class FlightService:
             dict(row.options), flight.factor,
         )  # fmt: skip
         self.book.active[row.id] = active
-        active.pump = asyncio.ensure_future(self._pump(active))
+        fleet.record(self._recorder(active))
         return active
 
     async def _upload(self, active: ActiveFlight) -> dict[str, VehicleOutcome[Any]]:
@@ -249,11 +251,14 @@ class FlightService:
 
     # --- events ------------------------------------------------------------------------
 
-    async def _pump(self, active: ActiveFlight) -> None:
-        """Store every fleet event but the periodic progress (of which the positions are
-        kept once a second: the flown tracks); pass all on live."""
+    def _recorder(self, active: ActiveFlight) -> Callable[[FleetEvent], None]:
+        """What the fleet hands every event to, in its tick: stored (all but the periodic
+        progress, of which the positions are kept once a second: the flown tracks) and
+        passed on live. Neither waits, and storage gets every event (`event_writer.py`)."""
         kept = float("-inf")
-        async for event in active.fleet.events():
+
+        def record(event: FleetEvent) -> None:
+            nonlocal kept
             message = event_json(event)
             if not isinstance(event, Progress):
                 self.book.events.record(
@@ -263,6 +268,8 @@ class FlightService:
                 kept = event.at
                 self.book.events.record(active.flight_id, "Positions", positions(event))
             self.book.tell(active.flight_id, message)
+
+        return record
 
     # --- live replanning ---------------------------------------------------------------
 
@@ -375,11 +382,11 @@ class FlightService:
             "vehicles": vehicles,
         }
 
-    async def listen(self, flight_id: str) -> asyncio.Queue[dict[str, Any]]:
+    async def listen(self, flight_id: str) -> LiveQueue:
         await self.book.state(flight_id)  # 404 for an unknown flight
         return self.book.listen(flight_id)
 
-    def unlisten(self, flight_id: str, queue: asyncio.Queue[dict[str, Any]]) -> None:
+    def unlisten(self, flight_id: str, queue: LiveQueue) -> None:
         self.book.unlisten(flight_id, queue)
 
     def _answers(

@@ -26,6 +26,7 @@ from gcs.service.api.deps import (
 from gcs.service.api.live_sockets import send_until_done
 from gcs.service.api.schemas import MAX_PAGE, UNSAFE_SPEED, MissionShape, Problem, UtcDatetime
 from gcs.service.flights.active import VehicleAnswer
+from gcs.service.flights.live_queue import LiveQueue
 from gcs.service.flights.service import FlightService
 from gcs.service.states import FlightState
 from gcs.service.storage import NotFound
@@ -369,7 +370,7 @@ async def live(websocket: WebSocket, flight_id: str) -> None:
 
 
 async def _stream(
-    websocket: WebSocket, flights: FlightService, flight_id: str, queue: asyncio.Queue[Any]
+    websocket: WebSocket, flights: FlightService, flight_id: str, queue: LiveQueue
 ) -> None:
     period = 1.0 / get_services(websocket).settings.live_rate_hz
     while True:

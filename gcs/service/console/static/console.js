@@ -587,6 +587,8 @@ function onLive(message) {
   } else if (message.type === "event") {
     if (message.kind === "Progress") return;
     addEvent(message);
+  } else if (message.type === "dropped") { // this page fell behind: the service says how far
+    addEvent({ kind: "live messages missed", count: message.count });
   }
 }
 
