@@ -65,6 +65,8 @@ TYPES = {
 LATER_COLUMNS = {"flights": "note", "jobs": "first_safe_s", "vehicles": "signing_key"}
 """Columns that data directories from before them lack (the hand migration added them)."""
 WHEN = "2026-12-01 10:00:00+00:00"
+JOIN_TIMEOUT_S = 60.0
+"""Without the upgrade's lock, concurrent starts can wait on each other for ever."""
 ROWS = [
     ("scenarios", {"id": "s1", "name": "case", "body": {"uavs": [1, 2]}, "created_at": WHEN}),
     ("plans", {"id": "p1", "scenario_id": "s1", "feasible": True, "body": {"paths": [[0.5]]}}),
@@ -255,11 +257,12 @@ def test_two_services_starting_on_one_new_database_take_turns(postgres: Any) -> 
             except BaseException as exc:
                 errors.append(exc)
 
-        threads = [threading.Thread(target=start) for _ in range(3)]
+        threads = [threading.Thread(target=start, daemon=True) for _ in range(3)]
         for thread in threads:
             thread.start()
         for thread in threads:
-            thread.join()
+            thread.join(JOIN_TIMEOUT_S)
+        assert not any(t.is_alive() for t in threads), "the starts are stuck on each other"
         assert errors == []
         engine = create_engine(url)
         assert _diff(engine) == []
