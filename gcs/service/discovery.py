@@ -5,7 +5,9 @@ Real ArduPilot SITL behind MAVProxy, PX4 SITL and `mvo-gcs sitl --out` send to
 127.0.0.1:14550; several vehicles share the port, each told apart by its system id (and
 held to the address its first HEARTBEAT came from: `MavConnection`). Each is listed,
 with its live state, ready to be registered (`udpin:127.0.0.1:14550` with its system id)
-and bound to a plan's UAV; a registered one uses the same link.
+and bound to a plan's UAV; a registered one uses the same link. One that is not
+registered and falls silent for `forget_after_s` is forgotten: anyone can announce a
+vehicle on the port, and a list of everything ever heard would only grow.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.transport import TransportOpener, open_transport
 
 log = logging.getLogger("mvo_gcs.discovery")
+SWEEP_PERIOD_S = 1.0
 
 
 class Discovery:
@@ -31,13 +34,16 @@ class Discovery:
         url: str,
         settings: LinkSettings | None = None,
         opener: TransportOpener = open_transport,
+        forget_after_s: float = 30.0,
     ) -> None:
         self.endpoint = Endpoint.parse(url)
+        self.forget_after_s = forget_after_s
         self.settings = settings or LinkSettings()
         self._opener = opener
         self.connection: MavConnection | None = None
         self.links: dict[int, VehicleLink] = {}
         self._attaching: dict[int, asyncio.Task[None]] = {}
+        self._sweeper: asyncio.Task[None] | None = None
         self.error = ""
 
     @property
@@ -53,7 +59,19 @@ class Discovery:
             log.warning("vehicle discovery is off: %s", self.error)
             return
         self.connection.listen(self._heard)
+        self._sweeper = asyncio.ensure_future(self._forget_the_silent())
         log.info("listening for vehicles on %s", self.url)
+
+    async def _forget_the_silent(self) -> None:
+        loop = asyncio.get_running_loop()
+        while True:
+            await asyncio.sleep(SWEEP_PERIOD_S)
+            assert self.connection is not None
+            for sysid, link in list(self.links.items()):
+                silent = loop.time() - link.state.last_heard > self.forget_after_s
+                if silent and sysid not in self.connection.pinned:  # pinned: registered
+                    del self.links[sysid]
+                    await link.close()
 
     def _heard(self, msg: Any) -> None:
         if not client.is_autopilot_heartbeat(msg):
@@ -84,6 +102,8 @@ class Discovery:
         return self.connection is not None and connection == self.url
 
     async def close(self) -> None:
+        if self._sweeper is not None:
+            self._sweeper.cancel()
         for task in list(self._attaching.values()):
             task.cancel()
         for link in list(self.links.values()):

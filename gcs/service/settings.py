@@ -83,6 +83,13 @@ class Settings(BaseSettings):
         description="UDP port where vehicles that announce themselves are heard (as "
         "QGroundControl listens); empty: no discovery",
     )
+    discovery_forget_s: float = Field(
+        default=30.0,
+        gt=0,
+        le=86_400,
+        description="a vehicle heard on the listening port, not registered and silent this "
+        "long, is no longer listed",
+    )
     console_tile_url: str = Field(
         default="",
         max_length=500,

@@ -245,3 +245,50 @@ def test_a_flood_of_senders_on_the_listening_port_is_bounded(tmp_path: Path) -> 
         for sender in senders:
             sender.close()
         service.stop()
+
+
+def test_announced_vehicles_that_fall_silent_are_forgotten(tmp_path: Path) -> None:
+    """Issue 28: 253 vehicles announced once on the listening port stayed listed (and
+    asked for telemetry) for ever. Unregistered and silent, they are forgotten."""
+    port = free_udp_port()
+    env = {"MVO_GCS_DISCOVERY_URL": f"udpin:127.0.0.1:{port}", "MVO_GCS_DISCOVERY_FORGET_S": "2"}
+    service = ServiceProcess(tmp_path / "data", env)
+    service.start()
+    try:
+        with (
+            service.client() as client,
+            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as fake,
+        ):
+
+            def listed() -> set[int]:
+                return {v["sysid"] for v in client.get("/vehicles/discovered").json()}
+
+            def announced() -> bool:
+                for sysid in (201, 202, 203):
+                    fake.sendto(forged(sysid), ("127.0.0.1", port))
+                return listed() == {201, 202, 203}
+
+            wait_for(announced, 30, "three announced", every=0.2)
+            wait_for(lambda: not listed(), 30, "the silent ones forgotten")
+    finally:
+        service.stop()
+
+
+def test_a_taken_listening_port_is_reported(tmp_path: Path) -> None:
+    """Issue 28: with the discovery port held by another program, the service said
+    "ready" and the console said nothing: no vehicle would ever be heard."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as squatter:
+        squatter.bind(("127.0.0.1", 0))
+        port = squatter.getsockname()[1]
+        service = ServiceProcess(
+            tmp_path / "data", {"MVO_GCS_DISCOVERY_URL": f"udpin:127.0.0.1:{port}"}
+        )
+        service.start()
+        try:
+            with service.client() as client:
+                health = client.get("/health/ready").json()
+            assert health["status"] == "ready"  # the API works; discovery does not
+            [warning] = health["warnings"]
+            assert f"127.0.0.1:{port}" in warning and "not listening" in warning, warning
+        finally:
+            service.stop()

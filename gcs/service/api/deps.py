@@ -103,7 +103,9 @@ def discovery_for(settings: Settings, opener: TransportOpener = open_transport) 
     """The listening port, if configured; beyond loopback only when that is allowed."""
     if not settings.discovery_url:
         return None
-    discovery = Discovery(settings.discovery_url, opener=opener)
+    discovery = Discovery(
+        settings.discovery_url, opener=opener, forget_after_s=settings.discovery_forget_s
+    )
     if not discovery.endpoint.is_loopback and not settings.listen_beyond_loopback:
         raise ValueError(
             f"discovery_url {settings.discovery_url} listens beyond this machine: set "

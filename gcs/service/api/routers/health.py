@@ -19,7 +19,8 @@ async def live() -> dict[str, str]:
 
 @router.get("/health/ready", responses={503: {"description": "not ready; says what is not"}})
 async def ready(services: ServicesDep) -> JSONResponse:
-    """Storage answers and the planning pool runs."""
+    """Storage answers and the planning pool runs. `warnings`: what works less than it
+    should while the service is still ready (no vehicle discovery: its port is taken)."""
     problems = []
     try:
         await services.db.run(_select_one, services)
@@ -27,7 +28,13 @@ async def ready(services: ServicesDep) -> JSONResponse:
         problems.append(f"storage: {exc}")
     if services.planning.pool is None:
         problems.append("planning pool not started")
-    body = {"status": "ready" if not problems else "not ready", "problems": problems}
+    discovery = services.discovery
+    warnings = [discovery.error] if discovery is not None and discovery.error else []
+    body = {
+        "status": "ready" if not problems else "not ready",
+        "problems": problems,
+        "warnings": warnings,
+    }
     return JSONResponse(body, status_code=503 if problems else 200)
 
 

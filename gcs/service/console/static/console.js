@@ -864,7 +864,16 @@ async function main() {
     await lookBack();
     setFlight(open);
   }
+  await sayWarnings();
   document.body.dataset.ready = "true";
+}
+
+/** What the service runs without, said at start: a taken discovery port means that no
+ * vehicle announcing itself will be heard. */
+async function sayWarnings() {
+  const health = await fetch("/health/ready").then((r) => r.json()).catch(() => null);
+  const warnings = health?.warnings ?? [];
+  if (warnings.length) say(warnings.join("; "), "error");
 }
 
 main();
