@@ -88,6 +88,10 @@ def test_after_a_restart_the_flight_is_interrupted_and_abort_still_works(
             with service.client() as client:
                 flight.client = client
                 assert flight.state() == "interrupted"
+                events = client.get(f"/flights/{flight.id}/events", params={"limit": 10000})
+                said = [e["data"] for e in events.json() if e["kind"] == "FlightState"]
+                assert said[-1]["state"] == "interrupted", said  # in its history too
+                assert said[-1]["note"] == "the service restarted"
                 live = client.get(f"/flights/{flight.id}/live-state").json()
                 wait_for(
                     lambda: all(

@@ -81,7 +81,7 @@ async def test_numbers_and_strings_that_poison_a_mission_are_422(
     assert where in json.dumps(answer.json()["detail"])
 
 
-async def test_a_plan_without_an_origin_is_not_uploaded(gcs: InProcessService) -> None:
+async def test_a_plan_without_an_origin_makes_no_flight(gcs: InProcessService) -> None:
     client = gcs.client
     sid = (await client.post("/scenarios", json={**CASE_VI, "origin": None})).json()["id"]
     planned = await client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30})
@@ -91,11 +91,11 @@ async def test_a_plan_without_an_origin_is_not_uploaded(gcs: InProcessService) -
         connection = f"udpout:127.0.0.1:{29000 + k}"
         registered = await client.post("/vehicles", json={"connection": connection})
         bindings[uav["id"]] = registered.json()["id"]
-    flight = await client.post(
+    answer = await client.post(
         "/flights", json={"plan_id": planned.json()["id"], "bindings": bindings}
-    )
-    answer = await client.post(f"/flights/{flight.json()['id']}/upload")
+    )  # refused when made, not only at the upload (issue 28)
     assert answer.status_code == 409 and "no origin" in answer.json()["detail"], answer.text
+    assert (await client.get("/flights")).json() == []
 
 
 @pytest.mark.parametrize(

@@ -225,7 +225,9 @@ async def test_a_restart_keeps_everything_and_interrupts_unfinished_work(databas
             job = await jobs.get(job_id)
             expected = JobState.INTERRUPTED if job_state in unfinished else job_state
             assert job.state == expected, job_state
-        assert [e.kind for e in await flights.events(flight_ids[F.FLYING])] == ["K"]
+        # the events kept, and the interruption in the flight's history (issue 28)
+        kept, said = await flights.events(flight_ids[F.FLYING])
+        assert (kept.kind, said.kind, said.data["state"]) == ("K", "FlightState", "interrupted")
         assert (await ScenarioRepository(db).get(sid)).body == BODY
     finally:
         db.close()

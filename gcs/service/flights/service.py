@@ -59,6 +59,14 @@ class BadBindings(ValueError):
     """The bindings do not pair the plan's UAVs with vehicles one to one; answered 422."""
 
 
+def _require_origin(scenario: Scenario, scenario_id: str, what: str) -> None:
+    if scenario.origin is None:
+        raise StateConflict(
+            f"{what}: scenario {scenario_id} has no origin (latitude, longitude, altitude "
+            "of cell 0, 0), so its plan cannot be flown; give it one"
+        )
+
+
 class FlightService:
     def __init__(
         self,
@@ -98,9 +106,9 @@ class FlightService:
         for vehicle_id in bindings.values():
             await self.vehicles.get(vehicle_id)
         scenario = Scenario(**(await self.scenarios.get(plan_row.scenario_id)).body)
-        if scenario.origin is not None:
-            autopilots = dict.fromkeys(uavs, Autopilot.ARDUPILOT)
-            await asyncio.to_thread(flight_plan, plan, scenario, autopilots, **options)
+        _require_origin(scenario, plan_row.scenario_id, f"plan {plan_id}")
+        autopilots = dict.fromkeys(uavs, Autopilot.ARDUPILOT)
+        await asyncio.to_thread(flight_plan, plan, scenario, autopilots, **options)
         row: FlightRow = await self.book.flights.add(
             FlightRow(plan_id=plan_id, bindings=bindings, options=options)
         )
@@ -134,11 +142,7 @@ class FlightService:
         """The flight's plan and scenario, refusing a scenario that cannot be flown."""
         plan_row = await self.plans.get(row.plan_id)
         scenario = Scenario(**(await self.scenarios.get(plan_row.scenario_id)).body)
-        if scenario.origin is None:
-            raise StateConflict(
-                f"flight {row.id}: scenario {plan_row.scenario_id} has no origin (latitude, "
-                "longitude, altitude of cell 0, 0), so its plan cannot be flown; give it one"
-            )
+        _require_origin(scenario, plan_row.scenario_id, f"flight {row.id}")
         return Plan(**plan_row.body), scenario
 
     def _activate(

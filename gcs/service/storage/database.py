@@ -19,17 +19,18 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TypeVar
 
-from sqlalchemy import Engine, create_engine, event, update
+from sqlalchemy import Engine, create_engine, event, select, update
 from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
 
 from gcs.service.states import OPEN, FlightState, JobState
 from gcs.service.storage import schema
-from gcs.service.storage.tables import FlightRow, JobRow, now
+from gcs.service.storage.tables import EventRow, FlightRow, JobRow, now
 
 T = TypeVar("T")
 STORAGE_THREADS = 4
 SQLITE_BUSY_TIMEOUT_S = 10.0
+RESTARTED = "the service restarted"
 
 
 class Database:
@@ -79,18 +80,27 @@ class Database:
                     )
                 )
             )
-            flights = rowcount(
-                s.execute(
-                    update(FlightRow)
-                    .where(FlightRow.state.in_(sorted(OPEN - {FlightState.INTERRUPTED})))
-                    .values(state=FlightState.INTERRUPTED, note="the service restarted")
-                )
+            was_open = FlightRow.state.in_(sorted(OPEN - {FlightState.INTERRUPTED}))
+            ids = list(s.scalars(select(FlightRow.id).where(was_open)))
+            s.execute(
+                update(FlightRow)
+                .where(FlightRow.id.in_(ids))
+                .values(state=FlightState.INTERRUPTED, note=RESTARTED)
             )
-        return {"jobs": jobs, "flights": flights}
+            s.add_all(_interrupted_event(flight_id) for flight_id in ids)
+        return {"jobs": jobs, "flights": len(ids)}
 
     def close(self) -> None:
         self._threads.shutdown(wait=True, cancel_futures=False)
         self.engine.dispose()
+
+
+def _interrupted_event(flight_id: str) -> EventRow:
+    """The state change the flight's event history would have had, had it been made
+    while the service ran (as `FlightBook.transition` records it)."""
+    state = FlightState.INTERRUPTED.value
+    message = {"type": "event", "kind": "FlightState", "state": state, "note": RESTARTED}
+    return EventRow(flight_id=flight_id, kind="FlightState", data=message)
 
 
 def rowcount(result: Any) -> int:
