@@ -117,6 +117,16 @@ class VehicleLinkRegained(FleetEvent):
 
 
 @dataclass(frozen=True)
+class AddressClaimed(FleetEvent):
+    """Another address sends as this vehicle's system id (and is ignored): an impostor,
+    or the vehicle itself come back through a restarted router, for the operator to move
+    (`POST /vehicles/{id}/address`)."""
+
+    uav_id: str
+    address: str
+
+
+@dataclass(frozen=True)
 class Progress(FleetEvent):
     vehicles: tuple[VehicleProgress, ...]
     min_separation_m: float | None

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from gcs.fleet.crew import Crew
 from gcs.fleet.events import (
+    AddressClaimed,
     FlightEnded,
     ItemReached,
     Progress,
@@ -45,6 +46,7 @@ class Follower:
         self.crew = crew
         self.finished: set[str] = set()
         self._link_down: set[str] = set()
+        self._claimants: dict[str, str] = {}  # uav -> the latest other address claiming it
 
     async def follow(self, timeout_s: float | None = None) -> FlightReport:
         """Watch the flight to its end; `timeout_s` is in the vehicles' seconds (default:
@@ -126,6 +128,10 @@ class Follower:
                 self._link_down.discard(m.uav_id)
                 self.crew.failed.pop(m.uav_id, None)
                 self.crew.bus.publish(VehicleLinkRegained(m.uav_id))
+            claim = m.link.connection.contested.get(m.link.sysid)
+            if claim is not None and self._claimants.get(m.uav_id) != claim.address:
+                self._claimants[m.uav_id] = claim.address
+                self.crew.bus.publish(AddressClaimed(m.uav_id, claim.address))
 
     def _keep_order(self) -> None:
         """Stop, release or edge up the vehicles the passing order says (`gatekeeper`)."""
