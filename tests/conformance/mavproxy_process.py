@@ -8,6 +8,7 @@ stopped by its process id (SIGTERM, which MAVProxy handles by shutting down clea
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import subprocess
@@ -17,6 +18,7 @@ import time
 from pathlib import Path
 
 STOP_S = 10.0
+SIGNAL_WAIT_S = 1.0  # after each signal, before the next
 POLL_S = 0.05
 
 
@@ -81,14 +83,15 @@ class MavProxy:
         return before
 
     def stop(self) -> None:
-        """SIGTERM by process id, then SIGKILL if it has not ended in time; bounded waits."""
-        if self._proc.poll() is None:
-            self._proc.terminate()
-            try:
-                self._proc.wait(timeout=STOP_S)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.wait(timeout=STOP_S)
+        """By process id: SIGTERM asks MAVProxy to shut down, a second one forces it (its
+        own handler says so), SIGKILL if even that is not over in time; bounded waits."""
+        for signal_it in (self._proc.terminate, self._proc.terminate, self._proc.kill):
+            if self._proc.poll() is not None:
+                break
+            signal_it()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self._proc.wait(timeout=SIGNAL_WAIT_S)
+        self._proc.wait(timeout=STOP_S)
         self._reader.join(timeout=STOP_S)
         if self._proc.stdin is not None:
             self._proc.stdin.close()
