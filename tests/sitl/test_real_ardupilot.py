@@ -203,6 +203,8 @@ def service_flight(
                 assert made.status_code == 201, made.text  # no refusal at 5 or 10 m/s
                 flight = made.json()["id"]
                 wait_for(lambda: all(online(client, v) for v in ids), 60, "vehicles online")
+                uids = wait_for(lambda: board_ids(client, ids), 60, "each says which board")
+                assert len(set(uids)) == len(ids), uids  # SITL: machine id + its instance
                 uploaded = client.post(f"/flights/{flight}/upload")
                 assert uploaded.status_code == 200, uploaded.text
                 assert all(v["ok"] for v in uploaded.json()["vehicles"]), uploaded.text
@@ -210,6 +212,12 @@ def service_flight(
                 yield client, flight, observer, plan
         finally:
             service.stop()
+
+
+def board_ids(client: httpx.Client, ids: list[str]) -> list[str] | None:
+    """Each vehicle's board id (AUTOPILOT_VERSION), once every one has said it."""
+    uids = [client.get(f"/vehicles/{v}").json()["live"].get("uid") for v in ids]
+    return uids if all(uids) else None
 
 
 def create_flight(
@@ -291,6 +299,7 @@ def test_the_service_flies_real_arducopter(tmp_path: Path, name: str, speed: flo
         f"service flight {name} at {speed:g} m/s: ground station "
         f"{ended['data']['min_separation_m']:.2f} m, {result.describe()}, timed flight "
         f"{timed.duration_s:.1f} s, 2R {two_r(scenario):.2f} m; 20 m/s {refusal}; "
+        f"{sum(e['kind'] == 'Waiting' for e in events)} waits; "
         f"landings {_rounded(result.landed_m)}; arrivals {_rounded(result.arrival_s)}"
     )
     check_flown(result, scenario, timed.duration_s, LAND_DRIFT_M, str(ended))
@@ -374,3 +383,25 @@ def coming_down(
         if p and p["current_seq"] == landings[v["uav_id"]] and 5.0 < (p["alt_m"] or 0.0) < 15.0:
             return v["uav_id"], v["vehicle_id"]
     return None
+
+
+def test_one_arducopter_reached_on_two_ports_is_one_vehicle(tmp_path: Path) -> None:
+    """Issue 28 on the real autopilot: one ArduCopter served on SERIAL0 (5760) and
+    SERIAL1 (5762), as behind MAVProxy, says which board it is (AUTOPILOT_VERSION uid2:
+    the machine id with its instance); the second registration is refused, naming the
+    first."""
+    homes = homes_at_starts(load_case("case-1"))[:1]
+    service = ServiceProcess(tmp_path / "data")
+    with instances(homes, tmp_path) as sitl:
+        service.start()
+        try:
+            with service.client() as client:
+                first = register(client, sitl[0].connection)
+                [uid] = wait_for(lambda: board_ids(client, [first]), 120, "its board id")
+                second = f"tcp:127.0.0.1:{sitl[0].port + 2}"
+                again = client.post("/vehicles", json={"connection": second})
+                assert again.status_code == 409, again.text
+                assert first in again.json()["detail"] and uid in again.json()["detail"]
+                print(f"one ArduCopter on two ports: uid {uid}; second registration refused")
+        finally:
+            service.stop()
