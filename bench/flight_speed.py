@@ -119,6 +119,8 @@ def scenarios(generated: int) -> list[tuple[str, Scenario]]:
 
 
 def fly_command(source: Path, urls: list[str], speed: float) -> list[str]:
+    """`mvo-gcs fly` of the product in the working directory it runs in (this one, or an
+    anchor's checkout: `python -m` imports from there first)."""
     return [
         sys.executable, "-m", "gcs.cli.main", "fly", str(source), "--vehicles", ",".join(urls),
         "--max-speed", f"{speed:g}", "--connect-timeout", "60", *PLANNING,
@@ -144,11 +146,20 @@ def read_cli(result: Result, fly: subprocess.CompletedProcess[str]) -> None:
 # --- the mock ---------------------------------------------------------------------------
 
 
-def fly_mock(name: str, scenario: Scenario, speed: float, rate: float, work: Path) -> Result:
+def fly_mock(
+    name: str,
+    scenario: Scenario,
+    speed: float,
+    rate: float,
+    work: Path,
+    product: Path = ROOT,
+    target: str = "mock",
+) -> Result:
+    """One flight of `product`'s `mvo-gcs fly` against this tree's mock."""
     work.mkdir(parents=True)
     source, track = work / "scenario.json", work / "track.jsonl"
     source.write_text(scenario.model_dump_json())
-    result = Result("mock", name, len(scenario.uavs), speed, "?", two_r_m=two_r(scenario))
+    result = Result(target, name, len(scenario.uavs), speed, "?", two_r_m=two_r(scenario))
     command = [
         sys.executable, "-m", "sitl_mock", "--scenario", str(source), "--base-port", "0",
         "--speedup", f"{rate:g}", "--track-log", str(track), "--estimate-delay", "5",
@@ -160,7 +171,7 @@ def fly_mock(name: str, scenario: Scenario, speed: float, rate: float, work: Pat
         assert mock.stdout is not None
         urls = [mock.stdout.readline().strip().split(": ", 1)[1] for _ in scenario.uavs]
         fly = subprocess.run(
-            fly_command(source, urls, speed), cwd=ROOT, capture_output=True, text=True,
+            fly_command(source, urls, speed), cwd=product, capture_output=True, text=True,
             timeout=3600,
         )  # fmt: skip
     finally:
@@ -302,7 +313,7 @@ def table(results: list[Result]) -> list[str]:
 
 
 def gap_swap_lines(results: list[Result]) -> list[str]:
-    lines = []
+    lines = _against_anchor(results)
     for target in ("mock", "sitl"):
         runs = {r.speed: r for r in results if r.target == target and r.scenario == "gap-swap-6"}
         slow, fast = runs.get(1.0), runs.get(5.0)
@@ -317,6 +328,26 @@ def gap_swap_lines(results: list[Result]) -> list[str]:
             f"{(fast.planned_s or 0) / (slow.planned_s or 1):.0%})."
         )
     return lines
+
+
+def _against_anchor(results: list[Result]) -> list[str]:
+    """The issue's yardstick: this product at 5 m/s against the anchor's (the product
+    before this work) at its default 1 m/s, the same scenario on the same mock."""
+    now = next((r for r in results if _is(r, "mock", 5.0)), None)
+    then = next((r for r in results if _is(r, "anchor", 1.0)), None)
+    if not now or not then or now.mission_s is None or then.mission_s is None:
+        return []
+    share = now.mission_s / then.mission_s
+    verdict = "under a quarter" if share < 0.25 else "NOT under a quarter"
+    return [
+        f"- against the anchor: {now.mission_s:.1f} s at 5 m/s now against "
+        f"{then.mission_s:.1f} s by the anchor at its default 1 m/s: {share:.0%} of the "
+        f"time, {verdict}."
+    ]
+
+
+def _is(result: Result, target: str, speed: float) -> bool:
+    return (result.target, result.scenario, result.speed) == (target, "gap-swap-6", speed)
 
 
 def product_version() -> str:
@@ -358,11 +389,16 @@ def write(results: list[Result], out: Path, command: str, began: datetime, args)
         "goal once down. A refused speed is `mvo-gcs fly` exiting 2 before anything armed.",
         "",
     ]
-    for target in ("mock", "sitl"):
+    headings = {
+        "mock": "mock",
+        "sitl": "sitl",
+        "anchor": f"anchor: `{args.anchor_label}` (the product before this work) on the mock",
+    }
+    for target, heading in headings.items():
         chosen = [r for r in results if r.target == target]
         if not chosen:
             continue
-        lines += [f"## {target}", "", *table(chosen), ""]
+        lines += [f"## {heading}", "", *table(chosen), ""]
     refused = [r for r in results if r.outcome == "refused"]
     failed = [r for r in results if r.outcome.startswith("failed")]
     lines += ["## Refused speeds", ""]
@@ -395,6 +431,15 @@ def main() -> int:
     parser.add_argument(
         "--product", default=None, help="what product was flown (default: git describe of here)"
     )
+    parser.add_argument(
+        "--anchor",
+        type=Path,
+        default=None,
+        help="a checkout of the product before this work (git worktree add DIR 75873ab): "
+        "its `mvo-gcs fly` at --anchor-speeds on the same mock and scenarios, side by side",
+    )
+    parser.add_argument("--anchor-speeds", default="1")
+    parser.add_argument("--anchor-label", default="75873ab")
     args = parser.parse_args()
     began = datetime.now(UTC)
     command = "unshare -n bash -c 'ip link set lo up; ARDUPILOT_SITL=... .venv/bin/python " + (
@@ -420,13 +465,28 @@ def main() -> int:
                         result = fly_mock(name, scenario, speed, args.mock_speedup, work)
                     else:
                         result = fly_sitl(name, scenario, speed, work)
-                    results.append(result)
-                    print(json.dumps(asdict(result)), flush=True)
-                    write(results, args.out, command, began, args)
-                    if args.json:
-                        args.json.write_text(json.dumps([asdict(r) for r in results], indent=1))
+                    _record(result, results, args, command, began)
+        if args.anchor:
+            chosen = [(n, s) for n, s in scenarios(0) if not wanted or n in wanted]
+            for name, scenario in chosen:
+                for speed in (float(v) for v in args.anchor_speeds.split(",")):
+                    work = Path(tmp) / f"anchor-{name}-{speed:g}"
+                    result = fly_mock(
+                        name, scenario, speed, args.mock_speedup, work, args.anchor, "anchor"
+                    )
+                    _record(result, results, args, command, began)
     print(f"wrote {args.out}")
     return 0
+
+
+def _record(
+    result: Result, results: list[Result], args: argparse.Namespace, command: str, began: datetime
+) -> None:
+    results.append(result)
+    print(json.dumps(asdict(result)), flush=True)
+    write(results, args.out, command, began, args)
+    if args.json:
+        args.json.write_text(json.dumps([asdict(r) for r in results], indent=1))
 
 
 if __name__ == "__main__":
