@@ -53,20 +53,20 @@ from planner.planning import (
     IMPROVEMENT,
     MAX_HOVER,
     MIN_GAIN,
+    Best,
+    Map,
     PlannerSettings,
     PlanProgress,
     ProgressCallback,
-    _adjoining_start_distance,
-    _as_waypoints,
-    _Best,
-    _finish,
-    _Map,
     _Planning,
+    adjoining_start_distance,
+    as_waypoints,
+    finish,
 )
-from planner.references.prioritized import SearchLimits
 from planner.safety import SafetyReport, cell_conflicts, uav_conflicts
 from planner.scenario import Scenario
 from planner.sipp import Mover, schedule
+from planner.space_time import SearchLimits
 from planner.trajectory import Trajectory, merge_collinear
 from planner.white_hole import Exploration, importance
 
@@ -92,7 +92,7 @@ class _Anytime(_Planning):
 
     def clearance(
         self,
-        world: _Map,
+        world: Map,
         region: tuple[Array, Array],
         corridor: tuple[Array, float] | None,
         radius: float,
@@ -134,7 +134,7 @@ class _Anytime(_Planning):
             return min(self.settings.patience, IMPROVE_PATIENCE)
         return self.settings.patience
 
-    def encoding(self, uav: str, world: _Map) -> DetourEncoding:
+    def encoding(self, uav: str, world: Map) -> DetourEncoding:
         """The optimizer moves the lone path's points and picks a hover at each, only in a
         window round where the UAV now hovers (the rest of its path has nothing to gain):
         a long path then costs a search of a few points, not of all of them."""
@@ -157,9 +157,9 @@ class _Anytime(_Planning):
             self.first_safe_s, self.first_safe_cost = self.budget.elapsed(), cost
         if self.best is None or cost < self.best.cost:
             replans = {u: list(r) for u, r in self.replans.items()}
-            self.best = _Best(dict(self.paths), replans, cost)
+            self.best = Best(dict(self.paths), replans, cost)
 
-    def fleet_cost(self, world: _Map) -> float:
+    def fleet_cost(self, world: Map) -> float:
         """Sum of the UAVs' costs, plus the penalty once per pair in conflict."""
         pairs = len(self.table.pairs) + sum(1 for h in self.table.cell_hits.values() if h)
         return sum(self.base_cost(u) for u in self.paths) + self.penalty(world) * pairs
@@ -171,7 +171,7 @@ class _Anytime(_Planning):
             if u != uav
         ]
 
-    def step(self, uav: str, reason: str, world: _Map) -> None:
+    def step(self, uav: str, reason: str, world: Map) -> None:
         """One non-optimizer replan as a run of one iteration, for the history and the
         progress callback (so a service's job shows the safe start moving)."""
         self.runs += 1
@@ -236,7 +236,7 @@ class _Anytime(_Planning):
         hover = max(trajectory.end_time - trajectory.length / speed, 0.0)
         return trajectory.length + HOVER_PRICE * speed * hover
 
-    def safe_start(self, world: _Map) -> None:
+    def safe_start(self, world: Map) -> None:
         """Step 2 made constructive: the highest-priority UAV in trouble (eq. 7) is made
         safe against the others; one that cannot be waits for another one's change."""
         failed: Counter[str] = Counter()
@@ -256,7 +256,7 @@ class _Anytime(_Planning):
     def excess(self, uav: str) -> float:
         return self.base_cost(uav) - self.lone[uav]
 
-    def improve_anytime(self, world: _Map) -> StopReason:
+    def improve_anytime(self, world: Map) -> StopReason:
         """Rounds over the UAVs that pay for others being near, most excess first: re-time,
         then search (eq. 8). Ends when a round gains less than ROUND_GAIN of the cost."""
         if self.best is None or self.settings.improve_rounds <= 0:
@@ -297,7 +297,7 @@ class _Anytime(_Planning):
             return []
         return sorted(worth, key=lambda u: -excess[u])
 
-    def retime(self, uav: str, world: _Map) -> None:
+    def retime(self, uav: str, world: Map) -> None:
         """Hover again where the others, as they now fly, make it necessary: often less
         than when this UAV was made safe (some of them moved since)."""
         spec = self.specs[uav]
@@ -315,7 +315,7 @@ class _Anytime(_Planning):
 def _hover_window(trajectory: Trajectory, lone: Array) -> tuple[float, float] | None:
     """The stretch of the lone path (arc lengths) within WINDOW cells of the points where
     `trajectory` hovers, or None (no hover, or a flight that left its lone path)."""
-    waypoints, waits = _as_waypoints(trajectory)
+    waypoints, waits = as_waypoints(trajectory)
     if not waits.any() or distance_to_polyline(waypoints, lone).max() > 1e-6:
         return None
     along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(lone, axis=0).T))])
@@ -351,7 +351,7 @@ def _split(polyline: Array, s0: float, s1: float) -> tuple[Array | None, Array, 
 
 def _geometry(trajectory: Trajectory) -> Array:
     """A flight's polyline without its hovers."""
-    waypoints, _ = _as_waypoints(trajectory)
+    waypoints, _ = as_waypoints(trajectory)
     return merge_collinear(waypoints)
 
 
@@ -447,7 +447,7 @@ def plan_anytime(
             shaping = budget.seconds is None or budget.elapsed() < SHAPING_SHARE * budget.seconds
         geometry[u.id] = cells
         paths[u.id] = Trajectory.from_waypoints(cells, u.speed)
-    world = _Map(blocked, None, blocked)
+    world = Map(blocked, None, blocked)
     radii = {u.id: u.radius for u in scenario.uavs}
     checked = budget.elapsed()
     table = ConflictTable(radii, blocked)
@@ -478,18 +478,18 @@ def plan_anytime(
         if routes[uav] != first_routes[uav]:
             state.replans[uav] = ["non-UAV object"]
     first = _exploration(state, object_map, first_routes)
-    state.start_distance = _adjoining_start_distance(scenario, first.priority)
+    state.start_distance = adjoining_start_distance(scenario, first.priority)
     state.record_if_safe()
     state.safe_start(world)
     if not state.table.clear() and not budget.expired():
         state.resolve_conflicts(world)  # what waiting and stepping aside could not solve
     reason = state.improve_anytime(world)
-    judged = _Map(obstacles, None, obstacles)
+    judged = Map(obstacles, None, obstacles)
     if state.best is None:  # not safe: the table's exact verdict says why, at no extra cost
-        return _finish(state, judged, first, reason, _table_report(state, obstacles, object_map))
+        return finish(state, judged, first, reason, _table_report(state, obstacles, object_map))
     state.paths = state.best.paths
     state.replans = state.best.replans
-    return _finish(state, judged, first, reason)  # a fresh exact check has the last word
+    return finish(state, judged, first, reason)  # a fresh exact check has the last word
 
 
 def _table_report(

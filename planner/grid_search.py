@@ -10,11 +10,15 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
+
+if TYPE_CHECKING:
+    from planner.scenario import Scenario
 
 Cell = tuple[int, int]
 MOVES = np.array([(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)])
@@ -165,3 +169,22 @@ def cell_map(cells: Iterable[Cell], shape: tuple[int, int]) -> NDArray[np.bool_]
 def path_length(cells: list[Cell]) -> float:
     steps = np.diff(np.asarray(cells, dtype=float), axis=0)
     return float(np.hypot(steps[:, 0], steps[:, 1]).sum())
+
+
+def shortest_lengths(scenario: Scenario) -> dict[str, float]:
+    """Per-UAV shortest path length: the reference a plan's length is judged by.
+
+    That is 8-connected, no corner cutting, objects blocked; where the objects wall
+    a goal off, the obstacles-only length is used instead.
+    """
+    obstacles = scenario.blocked()
+    with_objects = obstacles | cell_map(scenario.object_cells(), obstacles.shape)
+    graphs = [GridGraph.build(with_objects), GridGraph.build(obstacles)]
+    out = {}
+    for u in scenario.uavs:
+        for graph in graphs:
+            distance = float(graph.distances_to(u.goal)[u.start])
+            if np.isfinite(distance):
+                break
+        out[u.id] = distance
+    return out

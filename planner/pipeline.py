@@ -33,7 +33,7 @@ import numpy as np
 from planner.anytime import plan_anytime
 from planner.budget import Budget
 from planner.conflict_table import ConflictTable
-from planner.grid_search import cell_map
+from planner.grid_search import cell_map, shortest_lengths
 from planner.optimizers import get_algorithm
 from planner.plan import Plan
 from planner.planning import (
@@ -42,15 +42,14 @@ from planner.planning import (
     IMPROVEMENT,
     MAX_HOVER,
     MIN_GAIN,
+    Map,
     PlannerSettings,
     PlanProgress,
     ProgressCallback,
-    _adjoining_start_distance,
-    _finish,
-    _Map,
     _Planning,
+    adjoining_start_distance,
+    finish,
 )
-from planner.references import shortest_lengths
 from planner.scenario import Scenario
 from planner.trajectory import Trajectory, merge_collinear
 
@@ -79,7 +78,7 @@ def plan(
     if settings.objective == "qos" and settings.safe_start:
         return plan_anytime(scenario, settings, progress)
     budget = Budget(settings.time_budget_s)
-    obstacles = _Map.of(scenario.blocked())
+    obstacles = Map.of(scenario.blocked())
     specs = {u.id: u for u in scenario.uavs}
     objects = scenario.object_cells()
     paths = {}
@@ -97,7 +96,7 @@ def plan(
     checked = time.perf_counter()
     first = state.explore(obstacles)  # every pair, as the final check does: time it
     budget.keep_back(2.0 * (time.perf_counter() - checked) + FINISH_S)
-    state.start_distance = _adjoining_start_distance(scenario, first.priority)
+    state.start_distance = adjoining_start_distance(scenario, first.priority)
     state.record_if_safe()
 
     # The paper plans around the UAVs first and meets the objects only in the wormhole
@@ -105,14 +104,14 @@ def plan(
     # declares, so a detour never runs into one; the wormhole step still replans the
     # UAVs whose first paths the objects touch, and only those.
     known = cell_map(objects, obstacles.blocked.shape)
-    first_world = _Map.of(obstacles.blocked, known) if settings.objective == "qos" else obstacles
+    first_world = Map.of(obstacles.blocked, known) if settings.objective == "qos" else obstacles
     state.resolve_conflicts(first_world)
     world = state.wormhole(obstacles)
     if state.objects and world is obstacles:  # no UAV touched an object: block them anyway
-        world = _Map.of(obstacles.blocked | known)
+        world = Map.of(obstacles.blocked | known)
     state.record_if_safe()
     reason = state.improve(world)
     if state.best is not None:
         state.paths = state.best.paths
         state.replans = state.best.replans
-    return _finish(state, obstacles, first, reason)
+    return finish(state, obstacles, first, reason)

@@ -4,7 +4,7 @@
 with the metaheuristic repairing conflicts); `planner.anytime` runs it with a fast safe
 start. Both keep the fleet's paths, the conflict table (the white hole's numbers, exact),
 the budget and the cheapest plan that passed the exact check in a `_Planning`, and build
-the returned plan with `_finish`.
+the returned plan with `finish`.
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ ProgressCallback = Callable[[PlanProgress], None]
 
 
 @dataclass
-class _Map:
+class Map:
     """What counts as blocked (for judging paths) and what searches keep away from."""
 
     blocked: NDArray[np.bool_]
@@ -108,7 +108,7 @@ class _Map:
         blocked: NDArray[np.bool_],
         avoid: NDArray[np.bool_] | None = None,
         scale: int = PIXELS_PER_CELL,
-    ) -> _Map:
+    ) -> Map:
         searched = blocked if avoid is None else blocked | avoid
         return cls(blocked, GridGraph.build(searched), searched, scale)
 
@@ -129,7 +129,7 @@ class _Map:
 
 
 @dataclass
-class _Best:
+class Best:
     """The cheapest fleet that has passed the exact check so far."""
 
     paths: dict[str, Trajectory]
@@ -158,20 +158,20 @@ class _Planning:
     runs: int = 0
     iterations_run: int = 0
     stopped_by_budget: bool = False
-    best: _Best | None = None
+    best: Best | None = None
     first_safe_s: float | None = None
     first_safe_cost: float | None = None
     converged_runs: int = 0
-    _lone: dict[str, tuple[Trajectory, _Map, float]] = field(default_factory=dict)
+    _lone: dict[str, tuple[Trajectory, Map, float]] = field(default_factory=dict)
 
     @property
     def radii(self) -> dict[str, float]:
         return {u: s.radius for u, s in self.specs.items()}
 
-    def explore(self, world: _Map) -> Exploration:
+    def explore(self, world: Map) -> Exploration:
         return explore(self.paths, self.radii, self.shortest, self.objects, world.blocked.shape)
 
-    def penalty(self, world: _Map) -> float:
+    def penalty(self, world: Map) -> float:
         return 100.0 * (world.blocked.shape[0] + world.blocked.shape[1] + 10)
 
     @property
@@ -195,7 +195,7 @@ class _Planning:
         count = len(self.specs) + len(self.objects)
         return float(paper_fitness(count, trajectory.length, deviation, self.start_distance[uav]))
 
-    def others_cost(self, uav: str, world: _Map) -> float:
+    def others_cost(self, uav: str, world: Map) -> float:
         """The sum of every other UAV's search cost with `uav` left out of its traffic
         (the fleet cost of the progress reports and the history).
 
@@ -218,12 +218,12 @@ class _Planning:
                 total += self.lone_cost(u, world)
         return total
 
-    def lone_cost(self, uav: str, world: _Map) -> float:
+    def lone_cost(self, uav: str, world: Map) -> float:
         """`uav`'s search cost with no other UAV about, cached per path and map."""
         trajectory = self.paths[uav]
         cached = self._lone.get(uav)
         if cached is None or cached[0] is not trajectory or cached[1] is not world:
-            waypoints, waits = _as_waypoints(trajectory)
+            waypoints, waits = as_waypoints(trajectory)
             region = (waypoints.min(axis=0), waypoints.max(axis=0))
             search = self.search(uav, world, region, alone=True)
             cached = (trajectory, world, float(search.cost(waypoints[None], waits[None])[0]))
@@ -233,7 +233,7 @@ class _Planning:
     def search(
         self,
         uav: str,
-        world: _Map,
+        world: Map,
         region: tuple[Array, Array],
         ignore: str | None = None,
         alone: bool = False,
@@ -267,7 +267,7 @@ class _Planning:
 
     def clearance(
         self,
-        world: _Map,
+        world: Map,
         region: tuple[Array, Array],
         corridor: tuple[Array, float] | None,
         radius: float,
@@ -275,13 +275,13 @@ class _Planning:
         """What a search reads clearance from: the map's raster."""
         return world.field
 
-    def current_cost(self, uav: str, world: _Map, ignore: str | None = None) -> float:
-        waypoints, waits = _as_waypoints(self.paths[uav])
+    def current_cost(self, uav: str, world: Map, ignore: str | None = None) -> float:
+        waypoints, waits = as_waypoints(self.paths[uav])
         region = (waypoints.min(axis=0), waypoints.max(axis=0))
         search = self.search(uav, world, region, ignore)
         return float(search.cost(waypoints[None], waits[None])[0])
 
-    def encoding(self, uav: str, world: _Map) -> DetourEncoding | TurnEncoding | None:
+    def encoding(self, uav: str, world: Map) -> DetourEncoding | TurnEncoding | None:
         spec = self.specs[uav]
         if self.settings.objective == "qos":
             cells = world.route(spec.start, spec.goal)
@@ -295,7 +295,7 @@ class _Planning:
         same_way = np.sign(offset) if np.any(offset) else None
         return TurnEncoding(grid_steps(merge_collinear(self.paths[uav].xy)), same_way)
 
-    def replan(self, uav: str, world: _Map, reason: str, share: float = float("inf")) -> bool:
+    def replan(self, uav: str, world: Map, reason: str, share: float = float("inf")) -> bool:
         """One optimizer run for `uav`, of at most `share` seconds; keeps the new path if it
         costs less and the exact check finds no new conflict. True if kept."""
         spec = self.specs[uav]
@@ -427,14 +427,14 @@ class _Planning:
             self.first_safe_s, self.first_safe_cost = self.budget.elapsed(), cost
         if self.best is None or cost < self.best.cost:
             replans = {u: list(r) for u, r in self.replans.items()}
-            self.best = _Best(dict(self.paths), replans, cost)
+            self.best = Best(dict(self.paths), replans, cost)
 
-    def use_world(self, world: _Map) -> None:
+    def use_world(self, world: Map) -> None:
         """Judge cell hits against `world`'s blocked cells from now on."""
         if self.table.blocked is not world.blocked:
             self.table.on_map(world.blocked)
 
-    def resolve_conflicts(self, world: _Map, reason: str = "uav conflict") -> None:
+    def resolve_conflicts(self, world: Map, reason: str = "uav conflict") -> None:
         """Step 2: the highest-priority UAV in trouble replans until none is left, or until
         every UAV in trouble has failed ATTEMPTS times since the last success (the search
         is random, so a second try from where the first left off often succeeds). With a
@@ -456,7 +456,7 @@ class _Planning:
             else:
                 failures[uav] += 1
 
-    def wormhole(self, world: _Map) -> _Map:
+    def wormhole(self, world: Map) -> Map:
         """Step 3: the objects block their cells; only the UAVs they touch replan."""
         if not self.objects:
             return world
@@ -468,7 +468,7 @@ class _Planning:
         ]
         if not touched:
             return world
-        world = _Map.of(world.blocked | object_map)
+        world = Map.of(world.blocked | object_map)
         self.use_world(world)
         for uav in sorted(touched, key=lambda u: -self.table.priority(u)):
             if self.budget.expired():
@@ -479,7 +479,7 @@ class _Planning:
         self.resolve_conflicts(world)
         return world
 
-    def improve(self, world: _Map) -> StopReason:
+    def improve(self, world: Map) -> StopReason:
         """Step 4 (qos): with the fleet safe, each UAV in turn, most excess cost first,
         searches again against the others; rounds end when none improves."""
         wanted = self.settings.objective == "qos" and self.settings.improve_rounds > 0
@@ -512,7 +512,7 @@ class _Planning:
         return "converged" if self.converged_runs == self.runs else "iterations"
 
 
-def _adjoining_start_distance(scenario: Scenario, priority: dict[str, float]) -> dict[str, float]:
+def adjoining_start_distance(scenario: Scenario, priority: dict[str, float]) -> dict[str, float]:
     """Dist(t0) of Table III: start distance to the UAV of adjoining priority."""
     order = sorted(scenario.uavs, key=lambda u: -priority[u.id])  # stable: ties keep order
     if len(order) == 1:
@@ -524,7 +524,7 @@ def _adjoining_start_distance(scenario: Scenario, priority: dict[str, float]) ->
     return out
 
 
-def _as_waypoints(trajectory: Trajectory) -> tuple[Array, Array]:
+def as_waypoints(trajectory: Trajectory) -> tuple[Array, Array]:
     """Waypoints and hover times of a trajectory (a hover is two points at one place)."""
     points = trajectory.points
     waypoints, waits = [points[0, 1:]], [0.0]
@@ -537,9 +537,9 @@ def _as_waypoints(trajectory: Trajectory) -> tuple[Array, Array]:
     return np.array(waypoints), np.array(waits)
 
 
-def _finish(
+def finish(
     state: _Planning,
-    world: _Map,
+    world: Map,
     first: Exploration,
     reason: StopReason,
     report: SafetyReport | None = None,

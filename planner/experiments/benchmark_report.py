@@ -21,7 +21,7 @@ from planner.experiments.nfe_table import (
 )
 
 if TYPE_CHECKING:
-    from planner.experiments.benchmark_study import StudyConfig
+    from planner.experiments.benchmark_config import StudyConfig
 
 
 def write_report(

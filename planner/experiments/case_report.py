@@ -26,7 +26,7 @@ from planner.references.cbs import MapfDependencyError, plan_cbs
 from planner.references.prioritized import plan_prioritized
 
 if TYPE_CHECKING:
-    from planner.experiments.case_study import CaseStudyConfig
+    from planner.experiments.case_config import CaseStudyConfig
 
 PAPER_MEAN_J = 0.152  # the paper's headline: MVO's mean fitness over all cases
 PAPER_MEAN_SECONDS = 33.686  # the paper's mean MVO execution time, MATLAB

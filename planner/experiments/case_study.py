@@ -5,10 +5,9 @@ from __future__ import annotations
 import csv
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
-from planner.cases import CASES, PAPER_POPULATIONS
+from planner.experiments.case_config import CaseStudyConfig
 from planner.experiments.case_plots import (
     group_cases,
     plot_convergence,
@@ -16,35 +15,9 @@ from planner.experiments.case_plots import (
     plot_times,
 )
 from planner.experiments.case_report import write_report
-from planner.experiments.case_runs import CaseRecord, CaseSpec, run_case
+from planner.experiments.case_runs import CaseRecord, run_case
 from planner.experiments.case_table import build_case_table
 from planner.experiments.executor import run_all
-from planner.objectives import ObjectiveName
-from planner.optimizers import ALGORITHMS
-
-
-@dataclass(frozen=True)
-class CaseStudyConfig:
-    seeds: int = 30
-    iterations: int = 1000
-    populations: tuple[int, ...] = PAPER_POPULATIONS
-    algorithms: tuple[str, ...] = tuple(ALGORITHMS)
-    objective: ObjectiveName = "paper"
-    cases: tuple[str, ...] = CASES
-
-    @property
-    def figure_population(self) -> int:
-        """The population of Fig. 3: the paper's 30, else our largest."""
-        return 30 if 30 in self.populations else max(self.populations)
-
-    def runs(self) -> list[CaseSpec]:
-        return [
-            CaseSpec(c, a, p, self.iterations, self.objective, s)
-            for c in self.cases
-            for a in self.algorithms
-            for p in self.populations
-            for s in range(self.seeds)
-        ]
 
 
 def run_case_study(

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from planner.grid_search import GridGraph, cell_map
+from planner.grid_search import shortest_lengths
 from planner.safety import check_plan
 from planner.scenario import Scenario
 from planner.trajectory import Trajectory
@@ -40,25 +40,6 @@ class ReferenceResult:
     seconds: float
     note: str = ""
     expansions: int | None = None
-
-
-def shortest_lengths(scenario: Scenario) -> dict[str, float]:
-    """Per-UAV shortest path length: the reference a plan's length is judged by.
-
-    That is 8-connected, no corner cutting, objects blocked; where the objects wall
-    a goal off, the obstacles-only length is used instead.
-    """
-    obstacles = scenario.blocked()
-    with_objects = obstacles | cell_map(scenario.object_cells(), obstacles.shape)
-    graphs = [GridGraph.build(with_objects), GridGraph.build(obstacles)]
-    out = {}
-    for u in scenario.uavs:
-        for graph in graphs:
-            distance = float(graph.distances_to(u.goal)[u.start])
-            if np.isfinite(distance):
-                break
-        out[u.id] = distance
-    return out
 
 
 def judge(scenario: Scenario, result: ReferenceResult) -> dict[str, Any]:

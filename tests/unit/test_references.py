@@ -11,9 +11,10 @@ import pytest
 
 from planner.cases import CASES, load_case
 from planner.references import ReferenceResult, judge, shortest_lengths
-from planner.references.prioritized import SearchLimits, _Flight, min_gap, plan_prioritized
+from planner.references.prioritized import SearchLimits, plan_prioritized
 from planner.safety import check_plan, closest_approach
 from planner.scenario import Scenario, load_scenario
+from planner.space_time import Flight, min_gap
 from planner.trajectory import Trajectory
 
 
@@ -128,7 +129,7 @@ def test_move_test_is_as_exact_as_closest_approach() -> None:
         t0 = float(rng.uniform(0, 5))
         t1 = t0 + float(rng.choice([0.5, 1.0, math.sqrt(2)]))
         p0, p1 = rng.integers(0, 5, 2).astype(float), rng.integers(0, 5, 2).astype(float)
-        gap = min_gap((t0, *p0, t1, *p1), _Flight.of(flight, 0.3))
+        gap = min_gap((t0, *p0, t1, *p1), Flight.of(flight, 0.3))
         lo, hi = t0, min(t1, flight.end_time)
         if lo > hi:
             assert gap == math.inf
