@@ -89,6 +89,7 @@ def create_app(
                 await services.discovery.close()
             await services.events.close()
             await services.planning.shutdown()
+            await services.missions.close()
             services.loop_lag.stop()
             pool.shutdown()
             db.close()

@@ -26,6 +26,7 @@ from gcs.service.flights.operator import OperatorCommands
 from gcs.service.flights.service import FlightService
 from gcs.service.loop_lag import LoopLagProbe
 from gcs.service.metrics import ServiceMetrics
+from gcs.service.mission_files import MissionFiles
 from gcs.service.planning import PlanningService
 from gcs.service.settings import Settings
 from gcs.service.storage import (
@@ -59,6 +60,7 @@ class Services:
     loop_lag: LoopLagProbe
     discovery: Discovery | None
     live: LiveSockets
+    missions: MissionFiles
 
     @classmethod
     def build(
@@ -96,6 +98,7 @@ class Services:
             loop_lag=LoopLagProbe(metrics.loop_lag),
             discovery=discovery,
             live=LiveSockets(settings.max_live_sockets, settings.max_live_sockets_per_subject),
+            missions=MissionFiles(plans, scenarios, metrics),
         )
 
 
@@ -166,6 +169,10 @@ async def _operator(services: ServicesDep) -> OperatorCommands:
     return services.operator
 
 
+async def _mission_files(services: ServicesDep) -> MissionFiles:
+    return services.missions
+
+
 SettingsDep = Annotated[Settings, Depends(_settings)]
 ScenariosDep = Annotated[ScenarioRepository, Depends(_scenarios)]
 PlansDep = Annotated[PlanRepository, Depends(_plans)]
@@ -176,6 +183,7 @@ PlanningDep = Annotated[PlanningService, Depends(_planning)]
 RegistryDep = Annotated[VehicleRegistry, Depends(_registry)]
 FlightsDep = Annotated[FlightService, Depends(_flights)]
 OperatorDep = Annotated[OperatorCommands, Depends(_operator)]
+MissionFilesDep = Annotated[MissionFiles, Depends(_mission_files)]
 
 _MUTATING_ANSWERS: dict[int | str, dict[str, Any]] = {
     400: {"model": Problem, "description": "the body could not be read"},

@@ -12,6 +12,7 @@ from fastapi.responses import JSONResponse
 from gcs.service.api.deps import (
     FlightsDep,
     JobsDep,
+    MissionFilesDep,
     PlanningDep,
     PlansDep,
     ScenariosDep,
@@ -142,7 +143,9 @@ async def get_plan(plan_id: str, plans: PlansDep) -> PlanOut:
     operation_id="deletePlan",
     **mutating({**NOT_FOUND, 409: {"model": Problem, "description": "an open flight flies it"}}),
 )
-async def delete_plan(plan_id: str, plans: PlansDep, flights: FlightsDep) -> None:
+async def delete_plan(
+    plan_id: str, plans: PlansDep, flights: FlightsDep, mission_files: MissionFilesDep
+) -> None:
     """Delete a plan and its ended flights; refused while an open flight flies it."""
     await plans.get(plan_id)
     async with flights.book.claims:
@@ -153,6 +156,7 @@ async def delete_plan(plan_id: str, plans: PlansDep, flights: FlightsDep) -> Non
                 "abort or end it first"
             )
         await plans.delete(plan_id)
+    mission_files.forget(plan_id)
 
 
 @router.get("/jobs", tags=["jobs"], operation_id="listJobs")

@@ -6,7 +6,14 @@ from typing import Any
 
 from fastapi import APIRouter, Query, status
 
-from gcs.service.api.deps import FlightsDep, PlanningDep, PlansDep, ScenariosDep, mutating
+from gcs.service.api.deps import (
+    FlightsDep,
+    MissionFilesDep,
+    PlanningDep,
+    PlansDep,
+    ScenariosDep,
+    mutating,
+)
 from gcs.service.api.schemas import MAX_PAGE, Problem, ScenarioOut, ScenarioSummary
 from gcs.service.states import OPEN, StateConflict
 from gcs.service.storage.tables import ScenarioRow
@@ -80,6 +87,7 @@ async def delete_scenario(
     plans: PlansDep,
     planning: PlanningDep,
     flights: FlightsDep,
+    mission_files: MissionFilesDep,
 ) -> None:
     """Delete a scenario with its plans, jobs and ended flights. Refused while an open
     flight flies one of its plans; planning jobs still running are cancelled first."""
@@ -94,3 +102,4 @@ async def delete_scenario(
                 "flies one of its plans; abort or end it first"
             )
         await scenarios.delete(scenario_id)
+    mission_files.forget(*plan_ids, scenario_id=scenario_id)
