@@ -5,20 +5,28 @@ one already open (several vehicles on one port, or an in-memory transport in tes
 Both wait for the autopilot's HEARTBEAT (ignoring ground stations, cameras, gimbals,
 companion computers), make the link, and, unless told not to, ask for the telemetry
 streams the ground station follows (a real ArduPilot sends nothing else until asked).
+`identify(link)` asks which vehicle it is (`gcs.mavlink.identity`).
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
+from gcs.mavlink.commands import CommandPolicy, send_command
 from gcs.mavlink.connection import MavConnection, Message, Signing
-from gcs.mavlink.errors import ConnectTimeoutError
+from gcs.mavlink.errors import ConnectTimeoutError, GcsError, WaitTimeoutError
+from gcs.mavlink.identity import VehicleIdentity, identity_of
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.telemetry import TelemetryStreams
 from gcs.mavlink.transport import TransportOpener, open_transport
 
+ASK_POLICY = CommandPolicy(timeout_s=1.0, retries=2)
+"""An old autopilot may not know REQUEST_MESSAGE; three tries are enough to ask."""
+ANSWER_TIMEOUT_S = 1.0
+"""How long AUTOPILOT_VERSION may trail the command's ACK."""
 NOT_AUTOPILOT_TYPES = frozenset(
     {
         mavlink2.MAV_TYPE_GCS,
@@ -93,3 +101,31 @@ async def first_autopilot_heartbeat(
         ) from None
     finally:
         stop()
+
+
+async def identify(link: VehicleLink) -> VehicleIdentity | None:
+    """The vehicle's identity, asked for once per link and kept on it; None while the
+    vehicle does not answer (asked again next time)."""
+    if link.identity is not None:
+        return link.identity
+    with link.subscribe(["AUTOPILOT_VERSION"]) as sub:
+        try:
+            await _ask(link)
+            msg = await sub.next_matching(None, ANSWER_TIMEOUT_S)
+        except (GcsError, WaitTimeoutError):
+            return None
+    link.identity = identity_of(msg, link.sysid)
+    return link.identity
+
+
+async def _ask(link: VehicleLink) -> None:
+    """REQUEST_MESSAGE, or the older REQUEST_AUTOPILOT_CAPABILITIES where it is refused."""
+    with contextlib.suppress(GcsError):
+        await send_command(
+            link,
+            mavlink2.MAV_CMD_REQUEST_MESSAGE,
+            mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+            policy=ASK_POLICY,
+        )
+        return
+    await send_command(link, mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1, policy=ASK_POLICY)

@@ -6,24 +6,13 @@ connection string says nothing about which vehicle answers on it. The autopilot'
 AUTOPILOT_VERSION does: ArduPilot fills `uid2` (the MCU's id; SITL the machine id plus
 its instance) and PX4 `uid`. Two links whose vehicles report the same system id and the
 same UID reach one vehicle. A vehicle that reports no UID (zeros) cannot be told apart
-from another with its system id, and is never taken for one.
+from another with its system id, and is never taken for one. A link asks once
+(`gcs.mavlink.client.identify`) and keeps the answer.
 """
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
-
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
-from gcs.mavlink.commands import CommandPolicy, send_command
-from gcs.mavlink.errors import GcsError, WaitTimeoutError
-from gcs.mavlink.link import VehicleLink
-
-ASK_POLICY = CommandPolicy(timeout_s=1.0, retries=2)
-"""An old autopilot may not know REQUEST_MESSAGE; three tries are enough to ask."""
-ANSWER_TIMEOUT_S = 1.0
-"""How long AUTOPILOT_VERSION may trail the command's ACK."""
 
 
 @dataclass(frozen=True)
@@ -48,31 +37,3 @@ def identity_of(msg: object, sysid: int) -> VehicleIdentity:
     if any(uid2):
         return VehicleIdentity(sysid, uid2.rstrip(b"\0").hex())
     return VehicleIdentity(sysid, None)
-
-
-async def identify(link: VehicleLink) -> VehicleIdentity | None:
-    """The vehicle's identity, asked for once per link and kept on it; None while the
-    vehicle does not answer (asked again next time)."""
-    if link.identity is not None:
-        return link.identity
-    with link.subscribe(["AUTOPILOT_VERSION"]) as sub:
-        try:
-            await _ask(link)
-            msg = await sub.next_matching(None, ANSWER_TIMEOUT_S)
-        except (GcsError, WaitTimeoutError):
-            return None
-    link.identity = identity_of(msg, link.sysid)
-    return link.identity
-
-
-async def _ask(link: VehicleLink) -> None:
-    """REQUEST_MESSAGE, or the older REQUEST_AUTOPILOT_CAPABILITIES where it is refused."""
-    with contextlib.suppress(GcsError):
-        await send_command(
-            link,
-            mavlink2.MAV_CMD_REQUEST_MESSAGE,
-            mavlink2.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
-            policy=ASK_POLICY,
-        )
-        return
-    await send_command(link, mavlink2.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1, policy=ASK_POLICY)

@@ -15,16 +15,14 @@ import asyncio
 from collections.abc import Callable, Coroutine, Iterable
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from gcs.mavlink.connection import GCS_COMPID, GCS_SYSID, MavConnection, Message
 from gcs.mavlink.errors import LinkLostError, VehicleRebootedError
+from gcs.mavlink.identity import VehicleIdentity
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.subscription import Predicate, Subscription
 from gcs.mavlink.vehicle_state import MAV_STATE_BOOT, VehicleState
-
-if TYPE_CHECKING:
-    from gcs.mavlink.identity import VehicleIdentity
 
 BOOT_TIME_JUMP_MS = 2000  # time_boot_ms going back by more than this means a reboot
 HEARTBEAT_GAP_FACTOR = 1.8  # one heartbeat missed makes a gap (checked, not trusted)

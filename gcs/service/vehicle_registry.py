@@ -21,9 +21,10 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from gcs.mavlink import client
+from gcs.mavlink.client import identify
 from gcs.mavlink.connection import Signing
 from gcs.mavlink.errors import GcsError
-from gcs.mavlink.identity import VehicleIdentity, identify
+from gcs.mavlink.identity import VehicleIdentity
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.transport import TransportOpener, open_transport
 from gcs.mavlink.vehicle_state import VehicleState

@@ -70,11 +70,6 @@ TINY = {
     "gcs/fleet/__init__.py": "",
     "gcs/mission/__init__.py": "import gcs.mavlink\nimport planner\n",
     "gcs/mavlink/__init__.py": "",
-    "gcs/mavlink/identity.py": "from gcs.mavlink import link\n",
-    "gcs/mavlink/link.py": (
-        "from typing import TYPE_CHECKING\n"
-        "if TYPE_CHECKING:\n    from gcs.mavlink import identity\n"
-    ),
     "planner/__init__.py": "from planner import core\n",
     "planner/core.py": "import numpy\n",
     "planner/references/__init__.py": "import planner.core\n",
