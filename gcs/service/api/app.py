@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import AsyncIterator, Awaitable, Callable
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -123,10 +124,15 @@ def _private_directory(path: Path) -> None:
 
 
 def _methods_at(request: Request) -> list[str]:
-    """Every method some route answers at the request's path, asked of the routes
-    themselves (included routers too); a mount serves files: GET and HEAD."""
+    """The methods the request's path answers: as the API document says (its most
+    specific path: `/vehicles/discovered`, not `/vehicles/{vehicle_id}`), else as the
+    routes outside it do (the console, the docs; a mount serves files: GET, HEAD)."""
+    path = request.url.path
+    documented = _documented_methods(request.app.openapi().get("paths", {}), path)
+    if documented:
+        return documented
     methods: set[str] = set()
-    scope = {"type": "http", "path": request.url.path, "root_path": "", "method": "GET"}
+    scope = {"type": "http", "path": path, "root_path": "", "method": "GET"}
     for route in request.app.router.routes:
         if isinstance(route, Mount):
             if route.matches(scope)[0] == Match.FULL:
@@ -136,6 +142,18 @@ def _methods_at(request: Request) -> list[str]:
             if route.matches({**scope, "method": method})[0] == Match.FULL:
                 methods.add(method)
     return sorted(methods)
+
+
+def _documented_methods(paths: dict[str, dict[str, object]], path: str) -> list[str]:
+    matching = [
+        (template.count("{"), template)
+        for template in paths
+        if re.fullmatch(re.sub(r"\\\{[^}]*\\\}", "[^/]+", re.escape(template)), path)
+    ]
+    if not matching:
+        return []
+    _, template = min(matching)
+    return sorted(m.upper() for m in paths[template] if m.upper() in HTTP_METHODS)
 
 
 def _announce(settings: Settings, token: str, token_file: Path | None) -> None:
