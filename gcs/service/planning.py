@@ -63,11 +63,11 @@ class PlanningService:
         started = time.perf_counter()
         try:
             body = await self.pool.submit(job_id, scenario, settings)
-        except (PlanCancelled, asyncio.CancelledError):
+        except (PlanCancelled, asyncio.CancelledError) as exc:
             if self._stopping:  # not the user's doing: as after a crash (Database.recover)
                 await self._set(job_id, J.INTERRUPTED, error="the service stopped")
             else:
-                await self._set(job_id, J.CANCELLED, error="cancelled on request")
+                await self._set(job_id, J.CANCELLED, error=_cancelled(exc))
                 self.metrics.plans.labels("cancelled").inc()
         except Exception as exc:  # a planner bug must end the job, not the service
             await self._set(job_id, J.FAILED, error=f"{type(exc).__name__}: {exc}")
@@ -142,6 +142,14 @@ class PlanningService:
             task.cancel()
         if self._tasks:
             await asyncio.wait(list(self._tasks.values()), timeout=5.0)
+
+
+def _cancelled(exc: BaseException) -> str:
+    """The stored reason; a Dask worker counts the iterations it ran after the cancel."""
+    after = getattr(exc, "iterations_after", None)
+    if after is None:
+        return "cancelled on request"
+    return f"cancelled on request (its worker stopped {after} optimizer iteration(s) later)"
 
 
 def _settings_json(settings: PlannerSettings) -> dict[str, Any]:

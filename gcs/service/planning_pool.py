@@ -9,6 +9,9 @@ set of cancelled job ids between optimizer iterations.
 instead: no processes to start, and a simulated flight on a virtual clock stands still
 while it plans (the tests' in-process service). It shares the GIL with the event loop,
 so a long plan slows the vehicle links: it is not for a service flying real vehicles.
+
+`gcs.service.dask_planner.DaskPlanner` (`dask_scheduler` set) plans on a Dask cluster
+with the same interface.
 """
 
 from __future__ import annotations
@@ -33,7 +36,13 @@ PROGRESS_INTERVAL_S = 0.2
 
 
 class PlanCancelled(Exception):
-    """Raised inside a worker when its job was cancelled."""
+    """Raised inside a worker when its job was cancelled; `iterations_after`: how many
+    optimizer iterations ran after the cancellation reached the worker, where counted."""
+
+    def __init__(self, job_id: str, iterations_after: int | None = None) -> None:
+        super().__init__(job_id, iterations_after)  # both in args: it pickles back whole
+        self.job_id = job_id
+        self.iterations_after = iterations_after
 
 
 @dataclass(frozen=True)
@@ -50,9 +59,10 @@ ProgressSink = Callable[[JobProgress], None]
 
 
 class PlanRunner(Protocol):
-    """Where plans are computed: worker processes (`PlanningPool`) or a thread."""
+    """Where plans are computed: worker processes (`PlanningPool`), a thread, or a Dask
+    cluster (`DaskPlanner`). Started and shut down on the service's event loop."""
 
-    def start(self) -> None: ...
+    async def start(self) -> None: ...
 
     def submit(
         self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings
@@ -62,7 +72,7 @@ class PlanRunner(Protocol):
 
     def forget(self, job_id: str) -> None: ...
 
-    def shutdown(self) -> None: ...
+    async def shutdown(self) -> None: ...
 
 
 class PlanningPool:
@@ -83,7 +93,7 @@ class PlanningPool:
         self._reader = threading.Thread(target=self._read_progress, daemon=True)
         self._loop: asyncio.AbstractEventLoop | None = None
 
-    def start(self) -> None:
+    async def start(self) -> None:
         self._loop = asyncio.get_running_loop()
         self._reader.start()
 
@@ -102,7 +112,7 @@ class PlanningPool:
     def forget(self, job_id: str) -> None:
         self._cancelled.pop(job_id, None)
 
-    def shutdown(self) -> None:
+    async def shutdown(self) -> None:
         self._stop.set()
         self._executor.shutdown(wait=False, cancel_futures=True)
         if self._reader.is_alive():
@@ -131,7 +141,7 @@ class ThreadPlanner:
         self._threads = ThreadPoolExecutor(1, thread_name_prefix="planning")
         self._loop: asyncio.AbstractEventLoop | None = None
 
-    def start(self) -> None:
+    async def start(self) -> None:
         self._loop = asyncio.get_running_loop()
 
     def submit(
@@ -155,7 +165,7 @@ class ThreadPlanner:
     def forget(self, job_id: str) -> None:
         self._cancelled.pop(job_id, None)
 
-    def shutdown(self) -> None:
+    async def shutdown(self) -> None:
         self._cancelled.update(dict.fromkeys(self._cancelled, True))
         self._threads.shutdown(wait=False, cancel_futures=True)
 
@@ -183,14 +193,20 @@ def run_plan(
     settings: dict[str, Any],
     progress: Any,
     cancelled: Any,
+    *,
+    cancel_each_iteration: bool = False,
 ) -> dict[str, Any]:
-    """The worker: plan one scenario, reporting progress and honouring cancellation."""
+    """The worker: plan one scenario, reporting progress and honouring cancellation.
+    `cancelled.get(job_id)` is asked with every report, or with every optimizer iteration
+    when it is cheap (`cancel_each_iteration`: a local flag, as on a Dask worker)."""
     parsed = load_scenario(scenario)
     expected_runs = len(parsed.uavs)
     last = 0.0
 
     def on_progress(p: PlanProgress) -> None:
         nonlocal last
+        if cancel_each_iteration and cancelled.get(job_id):
+            raise PlanCancelled(job_id)
         at = time.monotonic()
         if at - last < PROGRESS_INTERVAL_S and p.iteration < p.iterations:
             return

@@ -35,6 +35,12 @@ class Settings(BaseSettings):
         description="planning processes; 0 plans in a thread of the service (tests, demos: "
         "it shares the event loop's processor time, so not beside real vehicles)",
     )
+    dask_scheduler: str = Field(
+        default="",
+        description="plan on the Dask cluster at this address (tcp://host:8786) instead of "
+        "local processes (plan_workers then unused); needs the distributed package, and "
+        "mvo-gcs on every worker",
+    )
     inline_plan_wait_s: float = Field(
         default=2.0, ge=0, le=60, description="how long a plan request waits before it answers 202"
     )

@@ -33,7 +33,7 @@ from gcs.service.api.routers import (
 )
 from gcs.service.console import mount_console
 from gcs.service.flights.service import BadBindings, BadObject
-from gcs.service.planning_pool import planner_for
+from gcs.service.planning_pool import PlanRunner, ProgressSink, planner_for
 from gcs.service.settings import Settings
 from gcs.service.states import StateConflict
 from gcs.service.storage import Database, NotFound
@@ -71,8 +71,8 @@ def create_app(
         services.loop_lag.start()
         if services.discovery is not None:
             await services.discovery.start()
-        pool = planner_for(settings.plan_workers, services.planning.on_progress)
-        pool.start()
+        pool = _planner(settings, services.planning.on_progress)
+        await pool.start()
         services.planning.pool = pool
         for vehicle in await services.vehicles.page(limit=10_000):
             signing = Signing.from_text(vehicle.signing_key) if vehicle.signing_key else None
@@ -92,7 +92,7 @@ def create_app(
             await services.planning.shutdown()
             await services.missions.close()
             services.loop_lag.stop()
-            pool.shutdown()
+            await pool.shutdown()
             db.close()
 
     app = FastAPI(
@@ -114,6 +114,16 @@ def create_app(
     _add_error_handlers(app)
     mount_console(app, settings)
     return app
+
+
+def _planner(settings: Settings, on_progress: ProgressSink) -> PlanRunner:
+    """Local processes (or a thread), or the Dask cluster when one is configured (Dask is
+    imported only then)."""
+    if settings.dask_scheduler:
+        from gcs.service.dask_planner import DaskPlanner
+
+        return DaskPlanner(settings.dask_scheduler, on_progress)
+    return planner_for(settings.plan_workers, on_progress)
 
 
 def _private_directory(path: Path) -> None:
