@@ -38,12 +38,13 @@ from typing import Any
 
 import httpx
 
-from bench.service_bench import ORIGIN, homes, line_scenario, loadavg
+from bench.service_bench import homes, line_scenario, loadavg
 from planner.cases import load_case
 from planner.experiments.machine import describe_machine
 from planner.scenario import Scenario
 from sitl_mock import Faults, Simulator, VehicleConfig
 from tests.e2e.flying import Flight, fleet_at_starts, wait_for
+from tests.e2e.test_mission_readers import line as line_of_uavs
 from tests.service_process import ServiceProcess
 
 RESULTS = Path("bench/results/operator.md")
@@ -176,21 +177,6 @@ PHASES = {
     "computing": "readers, while their options are paced",
     "cached": "readers, answered from the cache",
 }
-
-
-def big_line(uavs: int) -> Scenario:
-    """`uavs` UAVs 30 m apart on a line, each flying 150 m north: planned in well under a
-    second, while pacing it (`flight_plan`) grows with the square of the fleet."""
-    return Scenario.model_validate(
-        {
-            "name": f"line-{uavs}",
-            "grid": {"width": 2 * uavs, "height": 12, "cell_size_m": 15.0},
-            "origin": ORIGIN,
-            "uavs": [
-                {"id": f"uav{k + 1}", "start": [2 * k, 0], "goal": [2 * k, 10]} for k in range(uavs)
-            ],
-        }
-    )
 
 
 def read_missions(
@@ -371,7 +357,7 @@ def with_readers(
 
 def readers_main(args: argparse.Namespace) -> None:
     load_before = loadavg()
-    scenario = big_line(args.uavs)
+    scenario = line_of_uavs(args.uavs)
     runs: dict[str, list[dict[str, float]]] = {phase: [] for phase in PHASES}
     with tempfile.TemporaryDirectory() as tmp:
         service = ServiceProcess(Path(tmp) / "data")

@@ -10,13 +10,12 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
-
 from gcs.mavlink.connection import RELOCK_AFTER_S
 from gcs.mavlink.recent import SENDER_LIMIT
 from planner.cases import load_case
 from sitl_mock import Simulator, VehicleConfig
 from tests.e2e.flying import wait_for
+from tests.impostor import LONDON, forged
 from tests.service_process import ServiceProcess
 from tests.sitl.ardupilot_sitl import homes_at_starts
 
@@ -124,19 +123,6 @@ def test_one_vehicle_reached_on_its_port_and_on_the_listening_port_is_registered
             service.stop()
 
 
-LONDON_E7 = (515074000, -1278000)
-
-
-def forged(sysid: int) -> bytes:
-    """A HEARTBEAT in GUIDED and a position in London, as vehicle `sysid`."""
-    codec = mavlink2.MAVLink(None, srcSystem=sysid, srcComponent=1)
-    beat = codec.heartbeat_encode(
-        mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0x59, 4, 4
-    )
-    where = codec.global_position_int_encode(10**6, *LONDON_E7, 20_000, 20_000, 0, 0, 0, 0)
-    return bytes(beat.pack(codec)) + bytes(where.pack(codec))
-
-
 @contextmanager
 def impostor(port: int, sysid: int) -> Iterator[socket.socket]:
     """A local program that keeps sending as vehicle `sysid` to the listening port."""
@@ -204,7 +190,7 @@ def test_a_silent_vehicle_on_the_listening_port_is_not_taken_over(tmp_path: Path
                     moved = client.post(f"/vehicles/{vid}/address", json={"address": impostor_at})
                     assert moved.status_code == 200, moved.text
                     wait_for(
-                        lambda: abs(float(live()["lat"] or 0) - LONDON_E7[0] / 1e7) < 0.001,
+                        lambda: abs(float(live()["lat"] or 0) - LONDON[0] / 1e7) < 0.001,
                         30,
                         "the operator's choice taking effect",
                     )

@@ -11,7 +11,6 @@ import socket
 from collections.abc import Iterator
 
 import pytest
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink import client
 from gcs.mavlink.actions import FlightActions
@@ -19,10 +18,10 @@ from gcs.mavlink.connection import Signing
 from gcs.mavlink.errors import CommandTimeoutError
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from sitl_mock import VehicleConfig
+from tests.impostor import forged
 
 from .conftest import CMAC, FAST_LINK, vehicle
 
-LONDON = (515074000, -1278000)
 KEY = bytes(range(32))
 
 
@@ -33,16 +32,6 @@ def spoofer() -> Iterator[socket.socket]:
     sock.settimeout(0.2)
     yield sock
     sock.close()
-
-
-def forged(sysid: int) -> bytes:
-    """An unsigned HEARTBEAT in GUIDED and a position in London, as vehicle `sysid`."""
-    codec = mavlink2.MAVLink(None, srcSystem=sysid, srcComponent=1)
-    beat = codec.heartbeat_encode(
-        mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA, 0x59, 4, 4
-    )
-    where = codec.global_position_int_encode(10**6, *LONDON, 20_000, 20_000, 0, 0, 0, 0)
-    return bytes(beat.pack(codec)) + bytes(where.pack(codec))
 
 
 def local_port(link: VehicleLink) -> int:

@@ -12,6 +12,7 @@ from httpx_ws import AsyncWebSocketSession
 
 from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
+from tests.inprocess.flying import bind, register
 from tests.inprocess.service import InProcessService, until
 
 pytestmark = [pytest.mark.virtual_clock]
@@ -32,17 +33,8 @@ async def test_case_vi_is_planned_uploaded_flown_and_recorded(gcs: InProcessServ
 
     await gcs.restart()  # a restart between planning and flying loses nothing
     client = gcs.client
-    ids = []
-    for sysid in vehicles.sysids:
-        answer = await client.post(
-            "/vehicles", json={"connection": vehicles.connection_string(sysid)}
-        )
-        assert answer.status_code == 201, answer.text
-        ids.append(answer.json()["id"])
-    bindings = {u.id: v for u, v in zip(scenario.uavs, ids, strict=True)}
-    flight = await client.post("/flights", json={"plan_id": plan["id"], "bindings": bindings})
-    assert flight.status_code == 201, flight.text
-    fid = flight.json()["id"]
+    ids = [await register(client, vehicles.connection_string(k)) for k in vehicles.sysids]
+    fid = await bind(client, plan["id"], scenario, ids)
 
     early = await client.post(f"/flights/{fid}/start")
     assert early.status_code == 409 and "upload" in early.json()["detail"]

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import httpx
 import pytest
-from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from planner.cases import load_case
 from sitl_mock import Simulator, VehicleConfig
+from tests.impostor import forged
 from tests.inprocess.flying import Flight, bind, live, plan_scenario, register
 from tests.inprocess.service import InProcessService, until
 from tests.inprocess.vehicles import FAST_BOOT
@@ -103,10 +103,8 @@ async def test_another_address_sending_as_a_flying_vehicle_is_an_event(
     assert gcs.app is not None
     registry = gcs.app.state.services.registry
     link = registry.link(flight.vehicle_ids[0])
-    codec = mavlink2.MAVLink(None, srcSystem=link.sysid, srcComponent=1)
-    beat = codec.heartbeat_encode(mavlink2.MAV_TYPE_QUADROTOR, 3, 0x59, 4, 4).pack(codec)
     for _ in range(3):
-        link.connection._received(bytes(beat), ("127.0.0.9", 4444))  # as its socket would
+        link.connection._received(forged(link.sysid), ("127.0.0.9", 4444))  # as a socket would
 
     async def claimed() -> list[dict[str, object]]:
         return [e for e in await flight.events() if e["kind"] == "AddressClaimed"]
@@ -114,4 +112,4 @@ async def test_another_address_sending_as_a_flying_vehicle_is_an_event(
     [event] = await until(claimed, 30, "the claim in the flight's events")
     assert event["uav_id"] == "uav1" and event["data"]["address"] == "127.0.0.9:4444"
     assert sim.state(1).alt > 1.0  # the vehicle flies on, its address unchanged
-    assert link.connection.contested[link.sysid].packets == 3
+    assert link.connection.contested[link.sysid].packets == 6  # two packets each time

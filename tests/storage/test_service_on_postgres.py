@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 
 from planner.cases import load_case
+from tests.inprocess.flying import bind, register
 from tests.inprocess.service import InProcessService, until
 from tests.inprocess.vehicles import SimulatedVehicles
 
@@ -44,17 +45,8 @@ async def test_plan_fly_restart_and_delete(gcs: InProcessService) -> None:
     client = gcs.client
     assert (await client.get(f"/plans/{plan['id']}")).json() == plan
     assert [s["id"] for s in (await client.get("/scenarios")).json()] == [sid]
-    ids = []
-    for sysid in vehicles.sysids:
-        answer = await client.post(
-            "/vehicles", json={"connection": vehicles.connection_string(sysid)}
-        )
-        assert answer.status_code == 201, answer.text
-        ids.append(answer.json()["id"])
-    bindings = {u.id: v for u, v in zip(scenario.uavs, ids, strict=True)}
-    flight = await client.post("/flights", json={"plan_id": plan["id"], "bindings": bindings})
-    assert flight.status_code == 201, flight.text
-    fid = flight.json()["id"]
+    ids = [await register(client, vehicles.connection_string(k)) for k in vehicles.sysids]
+    fid = await bind(client, plan["id"], scenario, ids)
 
     async def uploaded_once_online() -> dict[str, Any] | None:
         answer = await client.post(f"/flights/{fid}/upload")
