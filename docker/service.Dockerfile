@@ -17,7 +17,7 @@ COPY pyproject.toml README.md ./
 COPY planner ./planner
 COPY gcs ./gcs
 COPY sitl_mock ./sitl_mock
-RUN pip install --no-cache-dir .
+RUN pip install --no-cache-dir "./.[dask]"
 
 USER 10001
 VOLUME ["/data"]

@@ -74,10 +74,36 @@ def test_the_vehicle_image_runs_a_real_command() -> None:
 def test_compose_starts_the_service_and_the_vehicles_on_a_private_network() -> None:
     compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
     services = compose["services"]
-    assert set(services) == {"api", "vehicles"}
+    assert set(services) == {"api", "vehicles", "dask-scheduler", "dask-worker"}
     assert services["api"]["build"]["dockerfile"] == "docker/service.Dockerfile"
     assert services["vehicles"]["build"]["dockerfile"] == "docker/sitl.Dockerfile"
     assert compose["networks"]["fleet"]["internal"] is True
     assert "fleet" in services["api"]["networks"] and services["vehicles"]["networks"] == ["fleet"]
     assert all(p.startswith("127.0.0.1:") for p in services["api"]["ports"])
     assert services["api"]["depends_on"]["vehicles"]["condition"] == "service_healthy"
+
+
+def test_compose_plans_on_a_dask_scheduler_and_workers_in_a_profile() -> None:
+    """`--profile dask` adds a scheduler and workers, from the service's image (mvo-gcs
+    installed with its `dask` extra, as every worker needs), on a network of their own;
+    the service plans there when MVO_GCS_DASK_SCHEDULER names the scheduler."""
+    from distributed.cli import dask_scheduler, dask_worker
+
+    compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
+    services = compose["services"]
+    api = services["api"]
+    for name in ("dask-scheduler", "dask-worker"):
+        service = services[name]
+        assert service["profiles"] == ["dask"]
+        assert service["build"] == api["build"] and service["image"] == api["image"]
+        assert service["entrypoint"] == ["dask"] and service["networks"] == ["compute"]
+    assert compose["networks"]["compute"]["internal"] is True and "compute" in api["networks"]
+    assert api["environment"]["MVO_GCS_DASK_SCHEDULER"] == "${MVO_GCS_DASK_SCHEDULER:-}"
+    scheduler = services["dask-scheduler"]["command"]
+    worker = services["dask-worker"]["command"]
+    assert scheduler[0] == "scheduler" and worker[0] == "worker"
+    port = dask_scheduler.main.make_context("dask scheduler", scheduler[1:]).params["port"]
+    parsed = dask_worker.main.make_context("dask worker", worker[1:]).params
+    assert parsed["scheduler"] == f"tcp://dask-scheduler:{port}"
+    assert parsed["nthreads"] == 1  # one plan per worker process at a time
+    assert any("[dask]" in run for run in _instruction(DOCKER / "service.Dockerfile", "RUN"))
