@@ -8,7 +8,11 @@ bench polls GET /jobs/{id} every 50 ms until every job is done. Throughput = job
 --nthreads 1` (one planning thread per process, as the local pool's processes); the
 scheduler, the workers, the service and this client all run on this machine.
 
-Usage: PYTHONPATH=. .venv/bin/python bench/dask_bench.py [--jobs 24] [--out bench/results/dask.md]
+The four set-ups run one after another, `--rounds` times over (so that a change in the
+machine's load meets each of them); the ratio is reported per round and as the median.
+
+Usage: PYTHONPATH=. .venv/bin/python bench/dask_bench.py [--jobs 24] [--rounds 2]
+       [--out bench/results/dask.md]
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -24,6 +29,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
+
+import httpx
 
 from planner.cases import load_case
 from planner.experiments.machine import cpu_model
@@ -87,39 +95,47 @@ def dask_cluster(workers: int, logs: Path) -> Iterator[str]:
         out.close()
 
 
-def throughput(service: ServiceProcess, jobs: int) -> tuple[float, float]:
+def run_jobs(client: httpx.Client, scenario: str, requests: list[dict[str, Any]]) -> None:
+    """Send every request at once, then wait until each job is done."""
+    ids = []
+    for request in requests:
+        answer = client.post(f"/scenarios/{scenario}/plans", json=request)
+        assert answer.status_code in (201, 202), answer.text
+        ids.append(answer.json()["id"])
+    pending = set(ids)
+    while pending:
+        for job_id in list(pending):
+            state = client.get(f"/jobs/{job_id}").json()["state"]
+            if state == "done":
+                pending.discard(job_id)
+            elif state in ("failed", "cancelled", "interrupted"):
+                raise RuntimeError(f"job {job_id} ended {state}")
+        if pending:
+            time.sleep(0.05)
+
+
+def throughput(service: ServiceProcess, jobs: int, workers: int) -> tuple[float, float]:
     """(jobs per second, seconds) for `jobs` requests sent at once."""
     with service.client() as client:
         sid = client.post("/scenarios", json=load_case("case-6").model_dump(mode="json"))
         scenario = sid.json()["id"]
-        warm = client.post(f"/scenarios/{scenario}/plans", json={"iterations": 20, "wait_s": 60})
-        assert warm.status_code == 201, warm.text  # every worker has imported the planner
+        warm = {**REQUEST, "iterations": 20}  # every worker imports the planner first
+        run_jobs(client, scenario, [warm | {"seed": seed} for seed in range(2 * workers)])
         started = time.perf_counter()
-        ids = []
-        for seed in range(jobs):
-            answer = client.post(f"/scenarios/{scenario}/plans", json=REQUEST | {"seed": seed})
-            assert answer.status_code in (201, 202), answer.text
-            ids.append(answer.json()["id"])
-        pending = set(ids)
-        while pending:
-            for job_id in list(pending):
-                state = client.get(f"/jobs/{job_id}").json()["state"]
-                if state == "done":
-                    pending.discard(job_id)
-                elif state in ("failed", "cancelled", "interrupted"):
-                    raise RuntimeError(f"job {job_id} ended {state}")
-            if pending:
-                time.sleep(0.05)
+        run_jobs(client, scenario, [REQUEST | {"seed": seed} for seed in range(jobs)])
         seconds = time.perf_counter() - started
     return jobs / seconds, seconds
 
 
 def measure(label: str, jobs: int, env: dict[str, str], workers: int, tmp: Path) -> dict[str, str]:
+    """One set-up: a fresh service (`workers` local processes, unless `env` points it at
+    a Dask cluster of `workers` workers)."""
     before = load()
-    service = ServiceProcess(tmp / label.replace(" ", "-"), extra_env=env, workers=workers)
+    data = tmp / f"{label.replace(' ', '-')}-{time.monotonic_ns()}"
+    service = ServiceProcess(data, extra_env=env, workers=workers)
     service.start(timeout=120)
     try:
-        rate, seconds = throughput(service, jobs)
+        rate, seconds = throughput(service, jobs, workers)
     finally:
         service.stop()
     row = {"label": label, "rate": f"{rate:.2f}", "seconds": f"{seconds:.1f}"}
@@ -131,21 +147,27 @@ def measure(label: str, jobs: int, env: dict[str, str], workers: int, tmp: Path)
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jobs", type=int, default=24)
+    parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--out", type=Path, default=ROOT / "bench/results/dask.md")
     args = parser.parse_args()
     started = time.perf_counter()
     first_load = load()
-    rows = {}
+    rounds: list[dict[str, dict[str, str]]] = []
     with tempfile.TemporaryDirectory(prefix="mvo-gcs-dask-bench-") as name:
         tmp = Path(name)
-        for workers in (1, 2):
-            rows[f"local {workers}"] = measure(f"local {workers}", args.jobs, {}, workers, tmp)
-            with dask_cluster(workers, tmp) as address:
-                env = {"MVO_GCS_DASK_SCHEDULER": address}
-                rows[f"dask {workers}"] = measure(f"dask {workers}", args.jobs, env, 1, tmp)
+        for _ in range(args.rounds):
+            rows = {}
+            for workers in (1, 2):
+                label = f"local {workers}"
+                rows[label] = measure(label, args.jobs, {}, workers, tmp)
+                with dask_cluster(workers, tmp) as address:
+                    env = {"MVO_GCS_DASK_SCHEDULER": address}
+                    label = f"dask {workers}"
+                    rows[label] = measure(label, args.jobs, env, workers, tmp)
+            rounds.append(rows)
     one = one_plan_s()
     wall = time.perf_counter() - started
-    write(args.out, rows, args.jobs, first_load, load(), wall, one)
+    write(args.out, rounds, args.jobs, first_load, load(), wall, one)
     return 0
 
 
@@ -165,15 +187,15 @@ def one_plan_s() -> float:
 
 def write(
     out: Path,
-    rows: dict[str, dict[str, str]],
+    rounds: list[dict[str, dict[str, str]]],
     jobs: int,
     before: str,
     after: str,
     wall: float,
     one: float,
 ) -> None:
-    def ratio(kind: str) -> str:
-        return f"{float(rows[f'{kind} 2']['rate']) / float(rows[f'{kind} 1']['rate']):.2f}x"
+    def ratio(rows: dict[str, dict[str, str]], kind: str) -> float:
+        return float(rows[f"{kind} 2"]["rate"]) / float(rows[f"{kind} 1"]["rate"])
 
     lines = [
         "# Planning-job throughput: a Dask cluster of 1 and 2 workers, the local pool beside it",
@@ -182,29 +204,36 @@ def write(
         f"- machine: {cpu_model()}, {os.cpu_count()} cores, {platform.system()} "
         f"{platform.release()}, Python {platform.python_version()}",
         f"- load average before / after the whole run: {before} / {after}",
-        "- command: `PYTHONPATH=. .venv/bin/python bench/dask_bench.py`",
+        f"- command: `PYTHONPATH=. .venv/bin/python bench/dask_bench.py --jobs {jobs} "
+        f"--rounds {len(rounds)}`",
         f"- wall time of the whole script: {wall:.0f} s",
         f"- jobs: {jobs} plan requests for case VI at once, MVO, the paper's flow "
         "(objective `paper`), population 30, 200 iterations, no patience, no time budget, "
-        f"seeds 0..; each answered 202, then polled. One plan in this process: {one:.2f} s "
-        "(median of 3)",
+        f"seeds 0..; each answered 202, then polled every 50 ms. One plan in this process: "
+        f"{one:.2f} s (median of 3). Before each measurement, 2 short jobs per worker "
+        "(every worker has imported the planner)",
         "- Dask: `dask scheduler` and `dask worker --nworkers N --nthreads 1` on 127.0.0.1, "
-        "the service with `MVO_GCS_DASK_SCHEDULER`; local: `mvo-gcs serve --workers N`",
+        "the service with `MVO_GCS_DASK_SCHEDULER`; local: `mvo-gcs serve --workers N`; "
+        "a fresh service (SQLite) and cluster for each measurement",
         "",
-        "| set-up | workers | jobs/s | seconds | load average before | after |",
-        "| --- | ---: | ---: | ---: | --- | --- |",
+        "| round | set-up | workers | jobs/s | seconds | load average before | after |",
+        "| ---: | --- | ---: | ---: | ---: | --- | --- |",
     ]
-    for key, row in rows.items():
-        kind, workers = key.split()
+    for number, rows in enumerate(rounds, 1):
+        for key, row in rows.items():
+            kind, workers = key.split()
+            lines.append(
+                f"| {number} | {kind} | {workers} | {row['rate']} | {row['seconds']} | "
+                f"{row['before']} | {row['after']} |"
+            )
+    lines.append("")
+    for kind, name in (("dask", "Dask"), ("local", "local pool")):
+        ratios = [ratio(rows, kind) for rows in rounds]
+        each = ", ".join(f"{r:.2f}x" for r in ratios)
         lines.append(
-            f"| {kind} | {workers} | {row['rate']} | {row['seconds']} | "
-            f"{row['before']} | {row['after']} |"
+            f"- 2 workers against 1, {name}: {each} (median {statistics.median(ratios):.2f}x)"
         )
-    lines += [
-        "",
-        f"2 workers against 1: Dask {ratio('dask')}, local pool {ratio('local')}.",
-        "",
-    ]
+    lines.append("")
     out.write_text("\n".join(lines))
     print(out.read_text())
 
