@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -14,8 +15,9 @@ from gcs.cli.planning_options import (
     add_planning_arguments,
     planner_settings,
     positive_int,
-    read_scenario,
+    read_scenario_file,
 )
+from gcs.mission.geographic import wgs84_trajectories
 from planner.cases import CASES, PAPER_POPULATIONS
 from planner.optimizers import ALGORITHMS, ObjectiveError, OptimizerInputError
 
@@ -118,9 +120,14 @@ def _bench_optimizers(args: argparse.Namespace) -> int:
 def _plan(args: argparse.Namespace) -> int:
     from planner.pipeline import plan
 
-    scenario = read_scenario(args.scenario)
+    source = read_scenario_file(args.scenario)
+    scenario = source.scenario
     result = plan(scenario, planner_settings(args))
     text = result.model_dump_json(indent=2)
+    if source.frame is not None:  # a geographic scenario: its paths in WGS84 too
+        answer = result.model_dump(mode="json")
+        answer["trajectories_wgs84"] = wgs84_trajectories(source.frame, result)
+        text = json.dumps(answer, indent=2)
     if args.output:
         args.output.write_text(text + "\n")
     else:

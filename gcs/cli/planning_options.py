@@ -1,13 +1,19 @@
-"""What every command that plans takes from the command line: a scenario and the
-planner's settings. Shared by `mvo-gcs plan` and `mvo-gcs fly`."""
+"""What every command that plans takes from the command line: a scenario (a grid, or
+a geographic one in GeoJSON) and the planner's settings. Shared by `mvo-gcs plan` and
+`mvo-gcs fly`."""
 
 from __future__ import annotations
 
 import argparse
+import json
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from pydantic import ValidationError
 
+from gcs.mission.geodesy import GridFrame
+from gcs.mission.geographic import GeographicError, derive_file, looks_geographic
 from planner.cases import CASES, load_case
 from planner.optimizers import ALGORITHMS
 from planner.pipeline import PlannerSettings
@@ -26,7 +32,11 @@ def positive_int(text: str) -> int:
 
 
 def add_planning_arguments(parser: argparse.ArgumentParser, iterations: int = 1000) -> None:
-    parser.add_argument("scenario", help="scenario JSON file, or case-1 .. case-6")
+    parser.add_argument(
+        "scenario",
+        help="scenario JSON file, geographic scenario (.geojson, docs/planner.md), "
+        "or case-1 .. case-6",
+    )
     parser.add_argument("--algorithm", choices=sorted(ALGORITHMS), default="mvo")
     parser.add_argument("--objective", choices=["qos", "paper"], default="qos")
     parser.add_argument("--seed", type=int, default=1)
@@ -63,17 +73,43 @@ def planner_settings(args: argparse.Namespace) -> PlannerSettings:
 
 def read_scenario(source: str) -> Scenario:
     """A scenario file, or the name of one of the paper's cases (case-1 .. case-6)."""
+    return read_scenario_file(source).scenario
+
+
+@dataclass(frozen=True)
+class ScenarioFile:
+    scenario: Scenario
+    frame: GridFrame | None = None
+    """Where the grid lies, for a geographic scenario (GeoJSON) the grid was derived from."""
+
+
+def read_scenario_file(source: str) -> ScenarioFile:
+    """A grid scenario file, a geographic one (a GeoJSON FeatureCollection, made into its
+    grid), or the name of one of the paper's cases."""
     path = Path(source)
     if not path.exists() and source in CASES:
-        return load_case(source)
+        return ScenarioFile(load_case(source))
     try:
         text = path.read_text()
-    except OSError as exc:
-        raise ScenarioFileError(f"cannot read scenario {source}: {exc.strerror}") from exc
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
+        raise ScenarioFileError(f"cannot read scenario {source}: {reason}") from exc
     try:
-        return load_scenario(text)
+        if path.suffix.lower() == ".geojson" or looks_geographic(_json_or_none(text)):
+            derived = derive_file(text)
+            return ScenarioFile(derived.scenario, derived.frame)
+        return ScenarioFile(load_scenario(text))
     except ValidationError as exc:
         raise ScenarioFileError(f"{source} is not a valid scenario:\n{_describe(exc)}") from exc
+    except GeographicError as exc:
+        raise ScenarioFileError(f"{source} is not a plannable scenario: {exc}") from exc
+
+
+def _json_or_none(text: str) -> Any:
+    try:
+        return json.loads(text)
+    except ValueError:
+        return None  # the scenario's own parser says where it breaks
 
 
 def _describe(exc: ValidationError) -> str:

@@ -59,6 +59,11 @@ class ScenarioOut(_Out):
     name: str
     created_at: UtcDatetime
     scenario: Scenario
+    geographic: dict[str, Any] | None = Field(
+        default=None,
+        description="the GeoJSON the grid scenario was derived from (posted as "
+        "application/geo+json), as it was sent; null for a grid scenario",
+    )
 
 
 class ScenarioSummary(_Out):
@@ -134,6 +139,11 @@ class PlanOut(_Out):
     scenario_id: str
     created_at: UtcDatetime
     plan: Plan
+    trajectories_wgs84: dict[str, list[list[float]]] | None = Field(
+        default=None,
+        description="per UAV id, its trajectory as [t, lat, lon] points (degrees, WGS84), "
+        "piecewise linear like `plan.uavs[].trajectory`; null when the scenario has no origin",
+    )
 
 
 class JobOut(_Out):
@@ -163,6 +173,14 @@ class SpeedProblem(Problem):
     safe for this plan and these vehicles (then with the highest it can)."""
 
     highest_safe_speed_m_s: float | None = None
+
+
+class GeographicProblem(Problem):
+    """A 422: the request is invalid, or a geographic scenario describes nothing
+    plannable (then `feature` names the feature at fault, e.g. `features[2] (start of
+    'uav1')`, or is null when it is the file as a whole)."""
+
+    feature: str | None = None
 
 
 UNSAFE_SPEED: dict[int | str, dict[str, Any]] = {

@@ -40,6 +40,8 @@ class ScenarioRow(Base):
     name: Mapped[str] = mapped_column(String(200))
     body: Mapped[dict[str, Any]]
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
+    geographic: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
+    """The geographic scenario (GeoJSON) `body` was derived from, as it was sent."""
 
 
 class PlanRow(Base):

@@ -9,6 +9,7 @@ from typing import Any
 from fastapi import APIRouter, Query, WebSocket, status
 from fastapi.responses import JSONResponse
 
+from gcs.mission.geographic import frame_of, wgs84_trajectories
 from gcs.service.api.deps import (
     FlightsDep,
     JobsDep,
@@ -23,9 +24,11 @@ from gcs.service.api.deps import (
 from gcs.service.api.live_sockets import send_until_done
 from gcs.service.api.schemas import MAX_PAGE, JobOut, PlanOut, PlanRequest, PlanSummary, Problem
 from gcs.service.states import OPEN, JobState, StateConflict
+from gcs.service.storage import ScenarioRepository
 from gcs.service.storage.tables import JobRow, PlanRow
 from planner.pipeline import PlannerSettings
 from planner.plan import Plan
+from planner.scenario import Grid, Origin
 
 router = APIRouter(tags=["plans"])
 NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": Problem}}
@@ -39,9 +42,18 @@ JOB_LINKS = {
 }
 
 
-def plan_out(row: PlanRow) -> PlanOut:
+async def plan_out(row: PlanRow, scenarios: ScenarioRepository) -> PlanOut:
+    """The plan, with its trajectories in WGS84 too when its scenario has an origin."""
+    plan = Plan(**row.body)
+    scenario = (await scenarios.get(row.scenario_id)).body
+    origin = scenario.get("origin")
+    frame = frame_of(Grid(**scenario["grid"]), Origin(**origin) if origin else None)
     return PlanOut(
-        id=row.id, scenario_id=row.scenario_id, created_at=row.created_at, plan=Plan(**row.body)
+        id=row.id,
+        scenario_id=row.scenario_id,
+        created_at=row.created_at,
+        plan=plan,
+        trajectories_wgs84=None if frame is None else wgs84_trajectories(frame, plan),
     )
 
 
@@ -68,6 +80,7 @@ async def request_plan(
     settings: SettingsDep,
     planning: PlanningDep,
     plans: PlansDep,
+    scenarios: ScenariosDep,
 ) -> PlanOut | JSONResponse:
     """Plan a stored scenario in the worker pool. A plan ready within `wait_s` is answered
     at once (201); otherwise the answer is the job (202), whose progress can be polled at
@@ -98,7 +111,7 @@ async def request_plan(
     wait = settings.inline_plan_wait_s if request.wait_s is None else request.wait_s
     job = await planning.request(scenario_id, planner_settings, wait, request.clearance_m)
     if job.state == JobState.DONE and job.plan_id is not None:
-        return plan_out(await plans.get(job.plan_id))
+        return await plan_out(await plans.get(job.plan_id), scenarios)
     final = JobState(job.state).is_final
     return JSONResponse(
         JobOut.model_validate(job).model_dump(mode="json"),
@@ -133,8 +146,8 @@ def _summary(row: PlanRow) -> PlanSummary:
 
 
 @router.get("/plans/{plan_id}", operation_id="getPlan", responses=NOT_FOUND)
-async def get_plan(plan_id: str, plans: PlansDep) -> PlanOut:
-    return plan_out(await plans.get(plan_id))
+async def get_plan(plan_id: str, plans: PlansDep, scenarios: ScenariosDep) -> PlanOut:
+    return await plan_out(await plans.get(plan_id), scenarios)
 
 
 @router.delete(

@@ -2,10 +2,25 @@
 
 from __future__ import annotations
 
+import json
+from collections.abc import Callable, Coroutine
 from typing import Any
 
-from fastapi import APIRouter, Query, status
+from fastapi import APIRouter, Query, Request, Response, status
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from fastapi.routing import APIRoute
+from pydantic import ValidationError
+from starlette.concurrency import run_in_threadpool
+from starlette.types import Message
 
+from gcs.mission.geographic import (
+    GEOJSON_MEDIA_TYPE,
+    GeographicError,
+    derive_file,
+    geojson_schema,
+    is_geojson,
+)
 from gcs.service.api.deps import (
     FlightsDep,
     MissionFilesDep,
@@ -14,12 +29,67 @@ from gcs.service.api.deps import (
     ScenariosDep,
     mutating,
 )
-from gcs.service.api.schemas import MAX_PAGE, Problem, ScenarioOut, ScenarioSummary
+from gcs.service.api.schemas import (
+    MAX_PAGE,
+    GeographicProblem,
+    Problem,
+    ScenarioOut,
+    ScenarioSummary,
+)
 from gcs.service.states import OPEN, StateConflict
 from gcs.service.storage.tables import ScenarioRow
 from planner.scenario import Scenario
 
-router = APIRouter(prefix="/scenarios", tags=["scenarios"])
+
+class GeographicRoute(APIRoute):
+    """`POST /scenarios` with `Content-Type: application/geo+json`: the file is made
+    into its grid scenario first, off the event loop, and the endpoint then takes that
+    as it takes a grid scenario in JSON, with the file kept beside it. A file that
+    describes nothing plannable is a 422 naming the feature."""
+
+    def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
+        handler = super().get_route_handler()
+        if self.operation_id != "createScenario":
+            return handler
+
+        async def route(request: Request) -> Response:
+            if not is_geojson(request.headers.get("content-type")):
+                return await handler(request)
+            body = await request.body()
+            try:
+                document = json.loads(body)
+                derived = await run_in_threadpool(derive_file, document)
+            except UnicodeDecodeError:
+                raise RequestValidationError(
+                    [{"type": "json_invalid", "loc": ("body",), "msg": "not UTF-8 text"}]
+                ) from None
+            except json.JSONDecodeError as exc:
+                raise RequestValidationError(
+                    [{"type": "json_invalid", "loc": ("body", exc.pos), "msg": exc.msg}]
+                ) from None
+            except ValidationError as exc:
+                errors = exc.errors(include_url=False, include_context=False)
+                raise RequestValidationError(
+                    [{**e, "loc": ("body", *e["loc"])} for e in errors]
+                ) from None
+            except GeographicError as exc:
+                return JSONResponse({"detail": str(exc), "feature": exc.feature}, 422)
+            grid = derived.scenario.model_dump_json().encode()
+            derived_request = Request(request.scope, _replay(grid))
+            derived_request.state.geographic = document
+            return await handler(derived_request)
+
+        return route
+
+
+def _replay(body: bytes) -> Callable[[], Coroutine[Any, Any, Message]]:
+    async def receive() -> Message:
+        return {"type": "http.request", "body": body, "more_body": False}
+
+    return receive
+
+
+router = APIRouter(prefix="/scenarios", tags=["scenarios"], route_class=GeographicRoute)
 NOT_FOUND: dict[int | str, dict[str, Any]] = {
     404: {"model": Problem, "description": "no such scenario"}
 }
@@ -31,19 +101,50 @@ SCENARIO_LINKS = {
 
 def _out(row: ScenarioRow) -> ScenarioOut:
     return ScenarioOut(
-        id=row.id, name=row.name, created_at=row.created_at, scenario=Scenario(**row.body)
+        id=row.id,
+        name=row.name,
+        created_at=row.created_at,
+        scenario=Scenario(**row.body),
+        geographic=row.geographic,
     )
+
+
+GEOGRAPHIC_BODY = {
+    "requestBody": {"content": {GEOJSON_MEDIA_TYPE: {"schema": geojson_schema()}}},
+}
 
 
 @router.post(
     "",
     status_code=status.HTTP_201_CREATED,
     operation_id="createScenario",
-    **mutating({201: {"links": SCENARIO_LINKS}}),
+    openapi_extra=GEOGRAPHIC_BODY,
+    **mutating(
+        {
+            201: {"links": SCENARIO_LINKS},
+            422: {
+                "model": GeographicProblem,
+                "description": "the request is invalid; `detail` says where, `feature` "
+                "which feature of a geographic scenario",
+            },
+        }
+    ),
 )
-async def create_scenario(scenario: Scenario, scenarios: ScenariosDep) -> ScenarioOut:
-    """Store a scenario (validated: grid limits, cells inside the grid, reachable goals)."""
-    row = ScenarioRow(name=scenario.name, body=scenario.model_dump(mode="json"))
+async def create_scenario(
+    scenario: Scenario, scenarios: ScenariosDep, request: Request
+) -> ScenarioOut:
+    """Store a scenario (validated: grid limits, cells inside the grid, reachable goals).
+
+    Or a geographic scenario (`Content-Type: application/geo+json`): a GeoJSON
+    FeatureCollection with the operating area, no-fly zones, starts and goals in WGS84
+    and `cell_size_m` (docs/planner.md). Its grid scenario is derived, stored with the
+    file beside it and returned; a file that describes nothing plannable (a ring that
+    crosses itself, a start in a zone, a goal outside the area, an area too large for
+    the grid) is a 422 whose `feature` names the feature at fault."""
+    geographic = getattr(request.state, "geographic", None)
+    row = ScenarioRow(
+        name=scenario.name, body=scenario.model_dump(mode="json"), geographic=geographic
+    )
     return _out(await scenarios.add(row))
 
 
