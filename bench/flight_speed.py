@@ -313,36 +313,35 @@ def table(results: list[Result]) -> list[str]:
 
 
 def gap_swap_lines(results: list[Result]) -> list[str]:
-    lines = _against_anchor(results)
+    """The gap swap at 5 m/s against 1 m/s: against the anchor (the product before this
+    work, the issue's yardstick), then against this product's own 1 m/s flight."""
+    lines = []
+    now = next((r for r in results if _is(r, "mock", 5.0)), None)
+    then = next((r for r in results if _is(r, "anchor", 1.0)), None)
+    if now and then:
+        lines += _share_line("against the anchor", now, then, "by the anchor")
     for target in ("mock", "sitl"):
-        runs = {r.speed: r for r in results if r.target == target and r.scenario == "gap-swap-6"}
-        slow, fast = runs.get(1.0), runs.get(5.0)
-        if not slow or not fast or slow.mission_s is None or fast.mission_s is None:
-            continue
-        share = fast.mission_s / slow.mission_s
-        verdict = "under a quarter" if share < 0.25 else "NOT under a quarter"
-        lines.append(
-            f"- {target}: {fast.mission_s:.1f} s at 5 m/s against {slow.mission_s:.1f} s at "
-            f"1 m/s: {share:.0%} of the time, {verdict} (the product's own timed flights: "
-            f"{_m(fast.planned_s, 0)} s and {_m(slow.planned_s, 0)} s, "
-            f"{(fast.planned_s or 0) / (slow.planned_s or 1):.0%})."
-        )
+        slow = next((r for r in results if _is(r, target, 1.0)), None)
+        fast = next((r for r in results if _is(r, target, 5.0)), None)
+        if slow and fast:
+            timed = (fast.planned_s or 0) / (slow.planned_s or 1)
+            lines += _share_line(
+                target, fast, slow, "",
+                f" (the product's own timed flights: {_m(fast.planned_s, 0)} s and "
+                f"{_m(slow.planned_s, 0)} s, {timed:.0%})",
+            )  # fmt: skip
     return lines
 
 
-def _against_anchor(results: list[Result]) -> list[str]:
-    """The issue's yardstick: this product at 5 m/s against the anchor's (the product
-    before this work) at its default 1 m/s, the same scenario on the same mock."""
-    now = next((r for r in results if _is(r, "mock", 5.0)), None)
-    then = next((r for r in results if _is(r, "anchor", 1.0)), None)
-    if not now or not then or now.mission_s is None or then.mission_s is None:
+def _share_line(label: str, fast: Result, slow: Result, whose: str, more: str = "") -> list[str]:
+    if fast.mission_s is None or slow.mission_s is None:
         return []
-    share = now.mission_s / then.mission_s
+    share = fast.mission_s / slow.mission_s
     verdict = "under a quarter" if share < 0.25 else "NOT under a quarter"
+    by = f" {whose}" if whose else ""
     return [
-        f"- against the anchor: {now.mission_s:.1f} s at 5 m/s now against "
-        f"{then.mission_s:.1f} s by the anchor at its default 1 m/s: {share:.0%} of the "
-        f"time, {verdict}."
+        f"- {label}: {fast.mission_s:.1f} s at 5 m/s against {slow.mission_s:.1f} s{by} at "
+        f"1 m/s: {share:.0%} of the time, {verdict}{more}."
     ]
 
 

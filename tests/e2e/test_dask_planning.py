@@ -14,16 +14,16 @@ import re
 import signal
 import subprocess
 import sys
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import httpx
 import pytest
 
 from planner.cases import load_case
+from tests.e2e.flying import wait_for
 from tests.inprocess.service import InProcessService
 from tests.inprocess.vehicles import SimulatedVehicles
 from tests.service_process import ServiceProcess, free_port
@@ -48,18 +48,6 @@ LONG_PLAN = {
     "wait_s": 0,
 }
 FINAL = {"done", "failed", "cancelled", "interrupted"}
-T = TypeVar("T")
-
-
-def until(condition: Callable[[], T], timeout: float, what: str) -> T:
-    deadline = time.monotonic() + timeout
-    while True:
-        value = condition()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout:.0f} s waiting for {what}")
-        time.sleep(0.05)
 
 
 @dataclass
@@ -180,7 +168,7 @@ def _start_long_job(service: httpx.Client, scenario_id: str) -> tuple[str, dict[
         assert job["state"] not in FINAL, job
         return job if job["state"] == "running" and job["percent"] > 0 else None
 
-    return job_id, until(progressing, 60, "the job's first progress report")
+    return job_id, wait_for(progressing, 60, "the job's first progress report")
 
 
 def _final(service: httpx.Client, job_id: str) -> dict[str, Any]:
@@ -188,7 +176,7 @@ def _final(service: httpx.Client, job_id: str) -> dict[str, Any]:
         job = _job(service, job_id)
         return job if job["state"] in FINAL else None
 
-    return until(ended, 30, "the job to end")
+    return wait_for(ended, 30, "the job to end")
 
 
 async def test_a_plan_on_the_cluster_is_the_local_plan_for_the_same_seed(
@@ -242,4 +230,4 @@ def test_a_worker_killed_mid_job_fails_the_job_which_is_not_run_again(
     assert job["state"] == "failed", job
     assert "WorkerLost" in job["error"] and "not re-run" in job["error"], job
     # cancelled on the scheduler: not run again when the nanny's new worker comes up
-    until(lambda: not cluster.scheduler_knows(f"mvo-gcs-plan-{job_id}"), 30, "the task gone")
+    wait_for(lambda: not cluster.scheduler_knows(f"mvo-gcs-plan-{job_id}"), 30, "the task gone")
