@@ -24,6 +24,7 @@ import pytest
 
 from planner.cases import load_case
 from tests.e2e.flying import wait_for
+from tests.inprocess.flying import LONG_PLAN
 from tests.inprocess.service import InProcessService
 from tests.inprocess.vehicles import SimulatedVehicles
 from tests.service_process import ServiceProcess, free_port
@@ -38,15 +39,6 @@ ENV = {
     "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
 }
 CASE_VI = load_case("case-6").model_dump(mode="json")
-# Minutes of work (every iteration of the paper's flow): still running whenever looked at.
-LONG_PLAN = {
-    "objective": "paper",
-    "iterations": 20_000,
-    "population": 60,
-    "time_budget_s": None,
-    "patience": None,
-    "wait_s": 0,
-}
 FINAL = {"done", "failed", "cancelled", "interrupted"}
 
 
@@ -159,7 +151,7 @@ def _job(service: httpx.Client, job_id: str) -> dict[str, Any]:
 
 def _start_long_job(service: httpx.Client, scenario_id: str) -> tuple[str, dict[str, Any]]:
     """A long job, once its worker's progress reports have reached the service."""
-    answer = service.post(f"/scenarios/{scenario_id}/plans", json=LONG_PLAN)
+    answer = service.post(f"/scenarios/{scenario_id}/plans", json=LONG_PLAN | {"wait_s": 0})
     assert answer.status_code == 202, answer.text
     job_id = answer.json()["id"]
 

@@ -17,6 +17,16 @@ from planner.scenario import Scenario
 from sitl_mock import Simulator
 from tests.inprocess.service import until
 
+LONG_PLAN = {
+    "objective": "paper",
+    "iterations": 20_000,
+    "population": 60,
+    "time_budget_s": None,
+    "patience": None,
+}
+"""The paper's flow with every iteration run: minutes of work, so a job is still running
+whenever a test looks (the anytime default ends case VI within a tenth of a second)."""
+
 
 async def plan_scenario(client: httpx.AsyncClient, scenario: Scenario) -> dict[str, Any]:
     """POST the scenario and plan it (within 30 s); the feasible plan as the API gives it."""
@@ -122,6 +132,21 @@ async def bind(
     answer = await client.post("/flights", json={"plan_id": plan_id, "bindings": bindings})
     assert answer.status_code == 201, answer.text
     return str(answer.json()["id"])
+
+
+async def upload_once_online(client: httpx.AsyncClient, flight_id: str) -> dict[str, Any]:
+    """Upload as soon as every vehicle is online (registration connects in the background:
+    until then the upload is 409); the answer."""
+
+    async def uploaded() -> dict[str, Any] | None:
+        answer = await client.post(f"/flights/{flight_id}/upload")
+        if answer.status_code == 409:
+            return None
+        assert answer.status_code == 200, answer.text
+        body: dict[str, Any] = answer.json()
+        return body
+
+    return await until(uploaded, 20, "an upload to vehicles online")
 
 
 async def live(client: httpx.AsyncClient, vehicle_id: str) -> dict[str, Any]:

@@ -19,21 +19,13 @@ import pytest
 from httpx_ws import AsyncWebSocketSession
 
 from planner.cases import load_case
+from tests.inprocess.flying import LONG_PLAN
 from tests.inprocess.service import InProcessService
 from tests.inprocess.vehicles import SimulatedVehicles
 
 pytestmark = [pytest.mark.virtual_clock]
 
 CASE_VI = load_case("case-6").model_dump(mode="json")
-# The paper's flow with every iteration run: minutes of work, so it is still running
-# whenever the test looks (the anytime default ends case VI within a tenth of a second).
-LONG_PLAN = {
-    "objective": "paper",
-    "iterations": 20_000,
-    "population": 60,
-    "time_budget_s": None,
-    "patience": None,
-}
 FINAL = {"done", "failed", "cancelled", "interrupted"}
 
 

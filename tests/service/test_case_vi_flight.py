@@ -12,8 +12,8 @@ from httpx_ws import AsyncWebSocketSession
 
 from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
-from tests.inprocess.flying import bind, register
-from tests.inprocess.service import InProcessService, until
+from tests.inprocess.flying import bind, register, upload_once_online
+from tests.inprocess.service import InProcessService
 
 pytestmark = [pytest.mark.virtual_clock]
 
@@ -39,15 +39,7 @@ async def test_case_vi_is_planned_uploaded_flown_and_recorded(gcs: InProcessServ
     early = await client.post(f"/flights/{fid}/start")
     assert early.status_code == 409 and "upload" in early.json()["detail"]
 
-    async def uploaded_once_online() -> dict[str, Any] | None:
-        answer = await client.post(f"/flights/{fid}/upload")
-        if answer.status_code == 409:  # a vehicle not online yet
-            return None
-        assert answer.status_code == 200, answer.text
-        body: dict[str, Any] = answer.json()
-        return body
-
-    uploaded = await until(uploaded_once_online, 20, "an upload to vehicles online")
+    uploaded = await upload_once_online(client, fid)
     assert uploaded["flight"]["state"] == "uploaded", uploaded
     assert all(v["ok"] for v in uploaded["vehicles"])
     for uav in ("uav1", "uav3"):  # the files users download are the missions flown

@@ -9,12 +9,11 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from planner.cases import load_case
-from tests.inprocess.flying import bind, register
+from tests.inprocess.flying import bind, register, upload_once_online
 from tests.inprocess.service import InProcessService, until
 from tests.inprocess.vehicles import SimulatedVehicles
 
@@ -48,15 +47,7 @@ async def test_plan_fly_restart_and_delete(gcs: InProcessService) -> None:
     ids = [await register(client, vehicles.connection_string(k)) for k in vehicles.sysids]
     fid = await bind(client, plan["id"], scenario, ids)
 
-    async def uploaded_once_online() -> dict[str, Any] | None:
-        answer = await client.post(f"/flights/{fid}/upload")
-        if answer.status_code == 409:  # a vehicle not online yet
-            return None
-        assert answer.status_code == 200, answer.text
-        body: dict[str, Any] = answer.json()
-        return body
-
-    uploaded = await until(uploaded_once_online, 20, "an upload to vehicles online")
+    uploaded = await upload_once_online(client, fid)
     assert uploaded["flight"]["state"] == "uploaded", uploaded
     started = await client.post(f"/flights/{fid}/start")
     assert started.status_code == 202, started.text
