@@ -65,6 +65,21 @@ class ServiceMetrics:
         self.events_written = Counter(
             "mvo_gcs_events_written", "flight events stored", registry=self.registry
         )
+        self.event_store_lag = Histogram(
+            "mvo_gcs_event_store_lag_seconds",
+            "from a flight event's recording to the commit of the transaction that stored it",
+            buckets=(
+                *(0.001, 0.002, 0.005, 0.0075, 0.01, 0.015, 0.02, 0.03, 0.05, 0.075, 0.1),
+                *(0.15, 0.25, 0.5, 1, 2.5, 5, 10, 30, 60),
+            ),
+            registry=self.registry,
+        )
+        self.events_spill_appends = Counter(
+            "mvo_gcs_events_spill_appends",
+            "flight events appended to the spill file since the start (storage was behind by "
+            "more than memory holds)",
+            registry=self.registry,
+        )
         self.event_store_failures = Counter(
             "mvo_gcs_event_store_failures",
             "writes of a batch of flight events that storage refused (each is tried again)",

@@ -145,6 +145,39 @@ async def test_a_slow_store_gets_every_event_in_order_with_memory_bounded(tmp_pa
     await events.close()
 
 
+async def test_each_stored_event_s_wait_is_measured_and_each_spilled_one_counted(
+    tmp_path: Path,
+) -> None:
+    store = SlowStore()
+    events = writer(store, tmp_path, memory_rows=10)
+    events.start()
+    events.record("f1", "Tick", {"n": 0})
+    await events.flush()  # storage keeps up: stored on the spot (the virtual clock stands)
+    store.gate.clear()
+    for n in range(1, 26):  # 10 in memory, 15 spilled
+        events.record("f1", "Tick", {"n": n})
+    await asyncio.sleep(2.0)
+    store.gate.set()
+    await events.flush()
+    metrics = events.metrics
+
+    def lag(sample: str, le: str | None = None) -> float:
+        labels = {"le": le} if le is not None else {}
+        value = metrics.registry.get_sample_value(
+            f"mvo_gcs_event_store_lag_seconds_{sample}", labels
+        )
+        assert value is not None, sample
+        return value
+
+    assert lag("count") == 26
+    assert lag("sum") == pytest.approx(25 * 2.0)
+    assert lag("bucket", "0.001") == 1  # the one stored at once
+    assert lag("bucket", "1.0") == 1 and lag("bucket", "2.5") == 26
+    assert metric(metrics, "mvo_gcs_events_spill_appends_total") == 15
+    assert store.rows == [("f1", n) for n in range(26)]
+    await events.close()
+
+
 async def test_a_failing_store_is_asked_again_until_it_takes_the_events(tmp_path: Path) -> None:
     store = SlowStore()
     store.failures = 4

@@ -14,7 +14,8 @@ down delays events, never loses them. Only the events of a flight deleted before
 were stored (they would have been deleted with it) and a spilled line cut short by a
 crash are left out, and counted.
 `mvo_gcs_events_pending`, `..._spilled`, `..._oldest_pending_seconds`,
-`..._written_total`, `mvo_gcs_event_store_failures_total` and
+`..._written_total`, `mvo_gcs_event_store_lag_seconds` (recording to commit, per event),
+`mvo_gcs_events_spill_appends_total`, `mvo_gcs_event_store_failures_total` and
 `mvo_gcs_events_discarded_total` show how far behind it is. At shutdown what is still
 unstored (after `CLOSE_WAIT_S`) goes to the spill file and is stored at the next start;
 a batch cut off mid-write then may be stored twice, never lost.
@@ -93,6 +94,7 @@ class EventWriter:
         event = PendingEvent(t, flight_id, kind, uav_id, data, now())
         if self.spill.unread or len(self._memory) >= self.memory_rows:
             self.spill.append(event)  # behind the spilled ones, in order
+            self.metrics.events_spill_appends.inc()
         else:
             self._memory.append(event)
         self.recorded += 1
@@ -159,6 +161,7 @@ class EventWriter:
         while batch:
             try:
                 await self.store.record_events([event.row() for event in batch])
+                self._observe_lag(batch)
                 return len(batch)
             except Exception:
                 self.metrics.event_store_failures.inc()
@@ -168,6 +171,15 @@ class EventWriter:
             with contextlib.suppress(Exception):  # storage down: ask again next time
                 batch = await self._without_deleted_flights(batch)
         return 0
+
+    def _observe_lag(self, stored: list[PendingEvent]) -> None:
+        """How long each stored event waited, from `record` to its transaction's commit
+        (one left by the last run: from this start)."""
+        if self._loop is None:
+            return
+        t = self._loop.time()
+        for event in stored:
+            self.metrics.event_store_lag.observe(max(t - event.t, 0.0))
 
     async def _without_deleted_flights(self, batch: list[PendingEvent]) -> list[PendingEvent]:
         gone = set()
