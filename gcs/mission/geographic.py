@@ -4,7 +4,8 @@ GeoJSON FeatureCollection, RFC 7946) made into the planner's grid scenario.
 The file (docs/planner.md, "Geographic scenarios"): one Polygon with `"role": "area"`;
 Polygons or MultiPolygons with `"role": "no-fly"` (a Point with `"role": "no-fly"` and
 `"radius_m"` is a circle); per UAV one Point with `"role": "start"` and one with
-`"role": "goal"`, both with `"uav": "<id>"` (optional `"speed_m_s"`, `"radius_m"`); the
+`"role": "goal"`, both with `"uav": "<id>"` (optional `"speed_m_s"`, `"radius_m"`); Points
+with `"role": "rally"` are rally points (gcs/mission/fence.py), inside the area; the
 collection's `properties` hold `"cell_size_m"` (and optionally `"name"`, `"margin_m"`,
 `"alt_m"`).
 
@@ -51,6 +52,8 @@ over that."""
 MAX_CUT_POINTS = 500_000
 """Most pieces the edges near the area are cut into (50 degrees of edges)."""
 MAX_FEATURES = 2_000
+MAX_RALLY_ALT_M = 32_767
+"""A rally point's highest altitude above home: ArduPilot keeps it in an int16 of metres."""
 MAX_VERTICES = 100_000
 
 Number = Annotated[float, Field(strict=True)]
@@ -116,7 +119,7 @@ class FeatureProperties(_Model):
     """What we read of a feature's properties; any others (a style, a label) are kept."""
 
     model_config = ConfigDict(extra="allow")
-    role: Literal["area", "no-fly", "start", "goal"]
+    role: Literal["area", "no-fly", "start", "goal", "rally"]
     uav: str | None = Field(
         default=None, min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$"
     )
@@ -197,7 +200,9 @@ class _Ends:
 
 
 def _where(index: int, p: FeatureProperties) -> str:
-    label = {"area": "the area", "no-fly": "no-fly zone"}.get(p.role, f"{p.role} of {p.uav!r}")
+    label = {"area": "the area", "no-fly": "no-fly zone", "rally": "rally point"}.get(
+        p.role, f"{p.role} of {p.uav!r}"
+    )
     if p.name:
         label += f" {p.name!r}"
     return f"features[{index}] ({label})"
@@ -209,6 +214,7 @@ def derive(source: GeographicScenario) -> DerivedScenario:
     cell = source.properties.cell_size_m
     areas: list[tuple[str, Polygon]] = []
     zones_in: list[tuple[str, Feature]] = []
+    rally: list[tuple[str, Point]] = []
     ends: dict[str, _Ends] = {}
     for i, feature in enumerate(source.features):
         where, role, geometry = (
@@ -224,6 +230,10 @@ def derive(source: GeographicScenario) -> DerivedScenario:
             if isinstance(geometry, Point) and feature.properties.radius_m is None:
                 raise GeographicError(where, "a Point no-fly zone needs its 'radius_m'")
             zones_in.append((where, feature))
+        elif role == "rally":
+            if not isinstance(geometry, Point):
+                raise GeographicError(where, f"a rally point is a Point, not a {geometry.type}")
+            rally.append((where, geometry))
         else:
             _add_end(ends, i, where, feature)
     if not areas:
@@ -249,6 +259,8 @@ def derive(source: GeographicScenario) -> DerivedScenario:
     zones = [_zone(frame, where, feature, cell, window) for where, feature in zones_in]
     zones = [z for z in zones if not z.shape.is_empty]
     blocked, why = _blocked(area, zones, width, height, clearance_m / cell)
+    for where, point in rally:
+        _check_rally(where, point, frame, area, zones)
 
     specs: list[UAVSpec] = []
     for uav, (speed, radius, (start, goal)) in uavs.items():
@@ -510,6 +522,25 @@ def _end_cell(
             f"= {clearance * cell_m:.1f} m of {reason}; move the {end} or use smaller cells",
         )
     return cx, cy
+
+
+def _check_rally(
+    where: str, point: Point, frame: GridFrame, area: BaseGeometry, zones: list[_Zone]
+) -> None:
+    """A rally point lies in the area and outside every zone: the vehicle's fence would
+    otherwise keep it from the point it returns to."""
+    lon, lat = point.coordinates[:2]
+    if len(point.coordinates) == 3 and not 0 <= point.coordinates[2] <= MAX_RALLY_ALT_M:
+        raise GeographicError(
+            where, f"a rally point's altitude is 0 to {MAX_RALLY_ALT_M} m above home"
+        )
+    x, y = (float(v) for v in frame.to_cells(lat, lon))
+    here = shapely.Point(x, y)
+    if not area.covers(here):
+        raise GeographicError(where, "the rally point lies outside the area")
+    for zone in zones:
+        if zone.shape.distance(here) <= zone.radius:
+            raise GeographicError(where, f"the rally point lies inside no-fly zone {zone.where}")
 
 
 def _grid_refusal(exc: ValidationError, source: GeographicScenario, ends: dict[str, _Ends]) -> str:
