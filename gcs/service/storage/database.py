@@ -16,10 +16,11 @@ import os
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
+from datetime import timedelta
 from pathlib import Path
 from typing import Any, TypeVar
 
-from sqlalchemy import Engine, create_engine, event, select, update
+from sqlalchemy import ColumnElement, Engine, create_engine, event, or_, select, true, update
 from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -65,34 +66,67 @@ class Database:
         loop = asyncio.get_running_loop()
         return await loop.run_in_executor(self._threads, functools.partial(fn, *args, **kwargs))
 
-    def recover(self) -> dict[str, int]:
+    def recover(
+        self, holder: tuple[str, str] | None = None, lease_s: float = 0.0
+    ) -> dict[str, int]:
         """Mark what a previous run left unfinished, so nothing is lost silently: planning
         jobs become `interrupted` (their processes died with the service) and every open
         flight becomes `interrupted` (nobody followed it while the service was down; its
-        vehicles may still be in the air, so it keeps them until they are down)."""
+        vehicles may still be in the air, so it keeps them until they are down).
+
+        With `holder` (this service's id and URL) the open flights become its own, under a
+        lease of `lease_s`; on a database several services share (not SQLite) only what
+        no live service holds is touched: rows of nobody, of this id, or whose lease ran
+        out (`leases.py`)."""
+        shared = holder is not None and self.engine.dialect.name != "sqlite"
+        dead_job = unheld(JobRow, holder[0]) if shared and holder else true()
+        dead = unheld(FlightRow, holder[0]) if shared and holder else true()
         with self.session() as s:
             jobs = rowcount(
                 s.execute(
                     update(JobRow)
-                    .where(JobRow.state.in_([JobState.QUEUED, JobState.RUNNING]))
+                    .where(
+                        JobRow.state.in_([JobState.QUEUED, JobState.RUNNING]),
+                        dead_job,
+                    )
                     .values(
                         state=JobState.INTERRUPTED, error="the service stopped", updated_at=now()
                     )
                 )
             )
+            open_ids = list(
+                s.scalars(select(FlightRow.id).where(FlightRow.state.in_(sorted(OPEN)), dead))
+            )
             was_open = FlightRow.state.in_(sorted(OPEN - {FlightState.INTERRUPTED}))
-            ids = list(s.scalars(select(FlightRow.id).where(was_open)))
+            ids = list(s.scalars(select(FlightRow.id).where(was_open, FlightRow.id.in_(open_ids))))
             s.execute(
                 update(FlightRow)
                 .where(FlightRow.id.in_(ids))
                 .values(state=FlightState.INTERRUPTED, note=RESTARTED)
             )
+            if holder is not None:
+                s.execute(
+                    update(FlightRow)
+                    .where(FlightRow.id.in_(open_ids))
+                    .values(
+                        owner_id=holder[0],
+                        owner_url=holder[1],
+                        lease_expires_at=now() + timedelta(seconds=lease_s),
+                    )
+                )
             s.add_all(_interrupted_event(flight_id) for flight_id in ids)
         return {"jobs": jobs, "flights": len(ids)}
 
     def close(self) -> None:
         self._threads.shutdown(wait=True, cancel_futures=False)
         self.engine.dispose()
+
+
+def unheld(table: type[FlightRow] | type[JobRow], holder_id: str) -> ColumnElement[bool]:
+    """Rows no live service holds: nobody's, this service id's, or past their lease."""
+    return or_(
+        table.owner_id.is_(None), table.owner_id == holder_id, table.lease_expires_at < now()
+    )
 
 
 def _interrupted_event(flight_id: str) -> EventRow:

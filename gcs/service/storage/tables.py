@@ -66,6 +66,12 @@ class JobRow(Base):
     error: Mapped[str | None] = mapped_column(Text, nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
+    owner_id: Mapped[str | None] = mapped_column(String(200), nullable=True)
+    """The service that runs it (it made it); nobody else ever runs it."""
+    lease_expires_at: Mapped[datetime | None] = mapped_column(
+        DateTime(timezone=True), nullable=True
+    )
+    """Its owner renews this while it lives; once past, the owner is taken for dead."""
 
 
 class VehicleRow(Base):
@@ -89,6 +95,14 @@ class FlightRow(Base):
     note: Mapped[str] = mapped_column(Text, default="", server_default="")  # why this state
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
     updated_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    owner_id: Mapped[str | None] = mapped_column(String(200), nullable=True)
+    """The service that controls it (from its upload on); one at a time."""
+    owner_url: Mapped[str | None] = mapped_column(String(500), nullable=True)
+    """Where that service answers (its advertised base URL), for the 409 of the others."""
+    lease_expires_at: Mapped[datetime | None] = mapped_column(
+        DateTime(timezone=True), nullable=True
+    )
+    """The owner renews this while it lives; once past, another service may take over."""
 
 
 class UploadRow(Base):

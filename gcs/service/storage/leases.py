@@ -1,0 +1,178 @@
+"""Leases: which service controls a flight and runs a job, when several services share one
+database. Every claim is one conditional UPDATE (a row is taken only while nobody holds
+it, its holder is this service, or its holder's lease has run out), so two services
+racing for one row cannot both win, on PostgreSQL as on SQLite; a holder keeps its rows
+by renewing them all in one UPDATE a second. Nothing here waits on a lock held by
+another service: a dead holder is simply one whose lease has expired.
+
+The times are the services' own clocks (UTC): services sharing a database must keep
+their clocks together (NTP), well within a lease.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+
+from sqlalchemy import select, update
+
+from gcs.service.states import OPEN, JobState
+from gcs.service.storage.database import Database, rowcount, unheld
+from gcs.service.storage.tables import FlightRow, JobRow, now
+
+UNFINISHED_JOBS = (JobState.QUEUED.value, JobState.RUNNING.value)
+
+
+@dataclass(frozen=True)
+class Holder:
+    """A service as a lease holder: its id and the base URL where it answers."""
+
+    id: str
+    url: str
+
+
+@dataclass(frozen=True)
+class Renewal:
+    """What one renewal found: the open flights this service still holds."""
+
+    flights: frozenset[str]
+    jobs: int
+
+
+class LeaseRepository:
+    def __init__(self, db: Database, holder: Holder, lease_s: float) -> None:
+        self.db, self.holder, self.lease_s = db, holder, lease_s
+
+    def _until(self) -> datetime:
+        return now() + timedelta(seconds=self.lease_s)
+
+    # --- flights -------------------------------------------------------------------------
+
+    async def claim_flight(self, flight_id: str) -> bool:
+        """Take the flight (or keep it); False if another live service holds it."""
+        return await self.db.run(self._claim_flight, flight_id)
+
+    def _claim_flight(self, flight_id: str) -> bool:
+        with self.db.session() as s:
+            claimed = s.execute(
+                update(FlightRow)
+                .where(FlightRow.id == flight_id, unheld(FlightRow, self.holder.id))
+                .values(
+                    owner_id=self.holder.id,
+                    owner_url=self.holder.url,
+                    lease_expires_at=self._until(),
+                )
+            )
+            return rowcount(claimed) == 1
+
+    async def orphans(self) -> list[FlightRow]:
+        """Open flights whose holder's lease has run out (another service's, dead)."""
+        return await self.db.run(self._orphans)
+
+    def _orphans(self) -> list[FlightRow]:
+        with self.db.session() as s:
+            query = select(FlightRow).where(
+                FlightRow.state.in_(sorted(OPEN)),
+                FlightRow.owner_id.is_not(None),
+                FlightRow.owner_id != self.holder.id,
+                FlightRow.lease_expires_at < now(),
+            )
+            return list(s.scalars(query.order_by(FlightRow.created_at)))
+
+    async def release(self) -> None:
+        """Let every flight this service holds go at once (a clean stop): another service
+        takes them over without waiting for the lease to run out."""
+        await self.db.run(self._release)
+
+    def _release(self) -> None:
+        with self.db.session() as s:
+            s.execute(
+                update(FlightRow)
+                .where(FlightRow.owner_id == self.holder.id)
+                .values(lease_expires_at=now())
+            )
+
+    # --- jobs ------------------------------------------------------------------------------
+
+    async def claim_job(self, job_id: str) -> bool:
+        """Take a queued job to run it; False if any service has taken it already: a job
+        is run once (one whose service died is interrupted, never taken again)."""
+        return await self.db.run(self._claim_job, job_id)
+
+    def _claim_job(self, job_id: str) -> bool:
+        with self.db.session() as s:
+            claimed = s.execute(
+                update(JobRow)
+                .where(
+                    JobRow.id == job_id,
+                    JobRow.state == JobState.QUEUED.value,
+                    JobRow.owner_id.is_(None),
+                )
+                .values(owner_id=self.holder.id, lease_expires_at=self._until())
+            )
+            return rowcount(claimed) == 1
+
+    async def interrupt_orphan_jobs(self) -> int:
+        """Jobs whose service died: `interrupted` (never run again elsewhere)."""
+        return await self.db.run(self._interrupt_orphan_jobs)
+
+    def _interrupt_orphan_jobs(self) -> int:
+        with self.db.session() as s:
+            return rowcount(
+                s.execute(
+                    update(JobRow)
+                    .where(
+                        JobRow.state.in_(UNFINISHED_JOBS),
+                        JobRow.owner_id != self.holder.id,
+                        JobRow.lease_expires_at < now(),
+                    )
+                    .values(
+                        state=JobState.INTERRUPTED.value,
+                        error="the service that ran it stopped",
+                        updated_at=now(),
+                    )
+                )
+            )
+
+    # --- both --------------------------------------------------------------------------------
+
+    async def renew(self) -> Renewal:
+        """Push this service's leases on; the open flights it still holds."""
+        return await self.db.run(self._renew)
+
+    def _renew(self) -> Renewal:
+        until = self._until()
+        with self.db.session() as s:
+            mine = FlightRow.owner_id == self.holder.id
+            s.execute(
+                update(FlightRow)
+                .where(mine, FlightRow.state.in_(sorted(OPEN)))
+                .values(lease_expires_at=until)
+            )
+            jobs = rowcount(
+                s.execute(
+                    update(JobRow)
+                    .where(JobRow.owner_id == self.holder.id, JobRow.state.in_(UNFINISHED_JOBS))
+                    .values(lease_expires_at=until)
+                )
+            )
+            held = s.scalars(select(FlightRow.id).where(mine, FlightRow.state.in_(sorted(OPEN))))
+            return Renewal(frozenset(held), jobs)
+
+    async def holder_of(self, flight_id: str) -> tuple[Holder | None, bool]:
+        """Who holds the flight, and whether their lease is still running."""
+        return await self.db.run(self._holder_of, flight_id)
+
+    def _holder_of(self, flight_id: str) -> tuple[Holder | None, bool]:
+        with self.db.session() as s:
+            row = s.get(FlightRow, flight_id)
+            if row is None or row.owner_id is None:
+                return None, False
+            expires = row.lease_expires_at
+            live = expires is not None and _aware(expires) >= now()
+            return Holder(row.owner_id, row.owner_url or ""), live
+
+
+def _aware(moment: datetime) -> datetime:
+    """SQLite gives timestamps back without their zone; they were stored in UTC."""
+    return moment if moment.tzinfo is not None else moment.replace(tzinfo=now().tzinfo)
