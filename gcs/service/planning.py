@@ -10,6 +10,7 @@ import asyncio
 import contextlib
 import logging
 import time
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,6 +38,8 @@ class PlanningService:
     _watchers: dict[str, set[asyncio.Queue[JobRow]]] = field(default_factory=dict)
     _reports: set[asyncio.Task[None]] = field(default_factory=set)  # progress being stored
     _stopping: bool = False
+    claim: Callable[[str], Awaitable[bool]] | None = None
+    """Takes a queued job for this service (LeaseRepository.claim_job): run once."""
 
     async def request(
         self, scenario_id: str, settings: PlannerSettings, wait_s: float, clearance_m: float = 0.0
@@ -50,6 +53,8 @@ class PlanningService:
                 settings={**_settings_json(settings), "clearance_m": clearance_m},
             )
         )
+        if self.claim is not None and not await self.claim(job.id):
+            return job  # another service runs it
         planned = Scenario(**scenario.body).with_clearance(clearance_m).model_dump(mode="json")
         task = asyncio.ensure_future(self._run(job.id, planned, settings))
         self._tasks[job.id] = task

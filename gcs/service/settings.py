@@ -108,6 +108,29 @@ class Settings(BaseSettings):
         "discovery port and for registered vehicles",
     )
 
+    service_id: str = Field(
+        default="",
+        max_length=200,
+        description="this service's name among the services sharing a database (the lease "
+        "holder of its flights); default: host name, port and a random suffix per start",
+    )
+    public_url: str = Field(
+        default="",
+        max_length=500,
+        description="the base URL other services name when they refuse a request for a "
+        "flight this one controls; default: http://host:port",
+    )
+    lease_s: float = Field(
+        default=3.0,
+        gt=0,
+        le=300,
+        description="how long a flight's or job's lease lasts unrenewed: a service that "
+        "stops renewing (killed) loses its flights to another this long after",
+    )
+    lease_renew_s: float = Field(
+        default=1.0, gt=0, le=100, description="how often a service renews its leases"
+    )
+
     @property
     def host_names(self) -> frozenset[str]:
         names = {name.strip("[]").lower() for name in self.allowed_hosts}

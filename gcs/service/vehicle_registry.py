@@ -82,6 +82,10 @@ class VehicleRegistry:
         else:
             entry.task = asyncio.ensure_future(self._keep_connected(vehicle_id, entry))
 
+    def knows(self, vehicle_id: str) -> bool:
+        """Registered here (connected or trying to)."""
+        return vehicle_id in self._entries
+
     async def remove(self, vehicle_id: str) -> None:
         entry = self._entries.pop(vehicle_id, None)
         if entry is not None:

@@ -62,11 +62,12 @@ def create_app(
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         _private_directory(settings.data_dir)
         db = Database(settings.resolved_database_url)
-        recovered = await db.run(db.recover)
-        if any(recovered.values()):
-            log.warning("marked unfinished work from the last run as interrupted: %s", recovered)
         token, token_file = ensure_token(settings)
         services = Services.build(settings, db, opener)
+        holder = services.control.holder
+        recovered = await db.run(db.recover, (holder.id, holder.url), settings.lease_s)
+        if any(recovered.values()):
+            log.warning("marked unfinished work from the last run as interrupted: %s", recovered)
         services.events.start()
         services.loop_lag.start()
         if services.discovery is not None:
@@ -77,14 +78,17 @@ def create_app(
         for vehicle in await services.vehicles.page(limit=10_000):
             signing = Signing.from_text(vehicle.signing_key) if vehicle.signing_key else None
             services.registry.add(vehicle.id, vehicle.connection, vehicle.sysid, signing)
-        await services.operator.after_restart()
+        await services.operator.after_restart(holder.id)
+        services.control.start()
         app.state.token, app.state.token_file, app.state.services = token, token_file, services
         _announce(settings, token, token_file)
         try:
             yield
         finally:
+            await services.control.stop()
             await services.operator.close()
             await services.flights.close()
+            await services.control.release()
             await services.registry.close()
             if services.discovery is not None:
                 await services.discovery.close()

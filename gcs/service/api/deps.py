@@ -20,6 +20,7 @@ from gcs.service.api.live_sockets import LiveSockets
 from gcs.service.api.schemas import Problem
 from gcs.service.discovery import Discovery
 from gcs.service.flights.book import FlightBook
+from gcs.service.flights.control import FlightControl, holder_for
 from gcs.service.flights.event_spill import EventSpill
 from gcs.service.flights.event_writer import EventWriter
 from gcs.service.flights.operator import OperatorCommands
@@ -37,6 +38,7 @@ from gcs.service.storage import (
     ScenarioRepository,
     VehicleRepository,
 )
+from gcs.service.storage.leases import LeaseRepository
 from gcs.service.vehicle_registry import VehicleRegistry
 
 
@@ -61,6 +63,7 @@ class Services:
     discovery: Discovery | None
     live: LiveSockets
     missions: MissionFiles
+    control: FlightControl
 
     @classmethod
     def build(
@@ -81,6 +84,14 @@ class Services:
             registry=registry,
             metrics=metrics,
         )
+        operator = OperatorCommands(flights, registry)
+        leases = LeaseRepository(db, holder_for(settings), settings.lease_s)
+        control = FlightControl(
+            leases, flights, operator, vehicles, registry, settings.lease_renew_s
+        )
+        flights.claim_control, flights.attach_vehicles = control.claim_for_upload, control.attach
+        operator.require = control.require
+        planning = PlanningService(scenarios, plans, jobs, metrics, claim=leases.claim_job)
         return cls(
             settings=settings,
             db=db,
@@ -90,15 +101,16 @@ class Services:
             jobs=jobs,
             vehicles=vehicles,
             flight_records=flight_records,
-            planning=PlanningService(scenarios, plans, jobs, metrics),
+            planning=planning,
             registry=registry,
             events=events,
             flights=flights,
-            operator=OperatorCommands(flights, registry),
+            operator=operator,
             loop_lag=LoopLagProbe(metrics.loop_lag),
             discovery=discovery,
             live=LiveSockets(settings.max_live_sockets, settings.max_live_sockets_per_subject),
             missions=MissionFiles(plans, scenarios, metrics),
+            control=control,
         )
 
 
@@ -173,6 +185,11 @@ async def _mission_files(services: ServicesDep) -> MissionFiles:
     return services.missions
 
 
+async def _controlled(flight_id: str, services: ServicesDep) -> None:
+    """409 naming the service that controls the flight, when it is another live one."""
+    await services.control.require(flight_id)
+
+
 SettingsDep = Annotated[Settings, Depends(_settings)]
 ScenariosDep = Annotated[ScenarioRepository, Depends(_scenarios)]
 PlansDep = Annotated[PlanRepository, Depends(_plans)]
@@ -184,6 +201,8 @@ RegistryDep = Annotated[VehicleRegistry, Depends(_registry)]
 FlightsDep = Annotated[FlightService, Depends(_flights)]
 OperatorDep = Annotated[OperatorCommands, Depends(_operator)]
 MissionFilesDep = Annotated[MissionFiles, Depends(_mission_files)]
+Controlled = Depends(_controlled)
+"""On a flight's route: refused (409) where another live service controls the flight."""
 
 _MUTATING_ANSWERS: dict[int | str, dict[str, Any]] = {
     400: {"model": Problem, "description": "the body could not be read"},

@@ -44,6 +44,8 @@ class OperatorCommands:
         self.book: FlightBook = flights.book
         self.registry = registry
         self._watchers: dict[str, asyncio.Task[None]] = {}
+        self.require: Callable[[str], Awaitable[None]] = _anyone
+        """409 unless this service controls the flight (FlightControl.require)."""
         self._owed: dict[str, tuple[Fallback, set[str]]] = {}
         """Per aborting flight: the abort's action, and the vehicles it has not reached yet
         (offline when it was sent, or it failed): sent to each as soon as it can be."""
@@ -138,11 +140,13 @@ class OperatorCommands:
     async def vehicle(self, vehicle_id: str, action: VehicleAction) -> VehicleAnswer:
         """Hold, land, return home or continue one vehicle, in or out of a flight."""
         asked = _now()
-        link = self.registry.link(vehicle_id)
         owner = await self.book.open_flight_of(vehicle_id)
         if owner is None:
+            link = self.registry.link(vehicle_id)
             outcome = await _on_link(FlightActions(link), action, vehicle_id)
             return VehicleAnswer("", vehicle_id, outcome.ok, outcome.detail, _now() - asked)
+        await self.require(owner.id)  # another live service controls it: 409 naming it
+        self.registry.link(vehicle_id)  # offline: 409 saying why
         uav = self.book.uav_of(owner, vehicle_id)
         async with self.book.slot(owner.id).intervention():
             outcome = await self._in_flight(owner, uav, vehicle_id, action)
@@ -183,6 +187,13 @@ class OperatorCommands:
         watcher = self._watchers.get(flight_id)
         if watcher is None or watcher.done():
             self._watchers[flight_id] = asyncio.ensure_future(self._until_down(flight_id))
+
+    def stop_watching(self, flight_id: str) -> None:
+        """Another service holds the flight now: it watches it, not this one."""
+        watcher = self._watchers.pop(flight_id, None)
+        if watcher is not None:
+            watcher.cancel()
+        self._owed.pop(flight_id, None)
 
     async def _until_down(self, flight_id: str) -> None:
         bindings = await self.book.bindings(flight_id)
@@ -231,11 +242,13 @@ class OperatorCommands:
         sent = [self.registry.last_sent(vid) for vid in vehicle_ids]
         return max([down_since, *(t for t in sent if t is not None)])
 
-    async def after_restart(self) -> None:
+    async def after_restart(self, holder_id: str | None = None) -> None:
         """Every flight that was open when the service stopped is `interrupted` now:
-        watch it until its vehicles are down (their links come back on their own)."""
+        watch it until its vehicles are down (their links come back on their own); with
+        several services on one database, those this one holds (`holder_id`)."""
         for row in await self.book.flights.open_flights():
-            self.watch_until_down(row.id)
+            if holder_id is None or row.owner_id in (None, holder_id):
+                self.watch_until_down(row.id)
 
     async def close(self) -> None:
         for watcher in list(self._watchers.values()):
@@ -294,6 +307,10 @@ async def _on_link(actions: FlightActions, action: VehicleAction, who: str) -> V
     except GcsError as exc:
         return VehicleOutcome(who, False, str(exc), error=exc)
     return VehicleOutcome(who, True, "ok")
+
+
+async def _anyone(_flight_id: str) -> None:
+    """One service alone on its database controls every flight."""
 
 
 def _done(outcome: VehicleOutcome[Any] | None) -> bool:

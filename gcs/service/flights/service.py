@@ -15,7 +15,7 @@ import asyncio
 import contextlib
 import dataclasses
 import logging
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable, Iterable
 from typing import Any
 
 from gcs.fleet.crew import FleetSettings
@@ -82,6 +82,10 @@ class FlightService:
         self.book, self.plans, self.scenarios = book, plans, scenarios
         self.vehicles, self.registry, self.metrics = vehicles, registry, metrics
         self.fleet_settings = fleet_settings or FleetSettings()
+        self.claim_control: Callable[[str], Awaitable[None]] = _claim_nothing
+        """Makes the flight this service's before its upload (FlightControl's claim)."""
+        self.attach_vehicles: Callable[[Iterable[str]], Awaitable[None]] = _claim_nothing
+        """Adds vehicles registered on another service sharing the database."""
 
     # --- creating ----------------------------------------------------------------------
 
@@ -124,12 +128,14 @@ class FlightService:
             row = await self.book.row(flight_id)
             FlightState(row.state).check(F.UPLOADING, flight_id)
             plan, scenario = await self._flyable(row)
+            await self.attach_vehicles(row.bindings.values())
             links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
             flight = await _flight_for(plan, scenario, links, row.options)
             await self.registry.identify_all(row.bindings.values())  # ownership is by vehicle
             async with self.book.claims:
                 await self.book.refuse_owned(row.bindings, flight_id)
                 _refuse_airborne(row, links)
+                await self.claim_control(flight_id)
                 await self.book.transition(flight_id, F.UPLOADING)
             active = self._activate(row, links, flight)
             try:
@@ -422,6 +428,10 @@ class FlightService:
                 await self.to_interrupted(
                     flight_id, f"the ground station stopped; held where they were: {held}"
                 )
+
+
+async def _claim_nothing(_what: object) -> None:
+    """One service alone on its database needs no claim."""
 
 
 async def _flight_for(

@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from gcs.mavlink.mission_item import Mission
 from gcs.mission.files import parse_plan, plan_text, waypoints_text
 from gcs.service.api.deps import (
+    Controlled,
     FlightRecordsDep,
     FlightsDep,
     OperatorDep,
@@ -28,7 +29,7 @@ from gcs.service.api.schemas import MAX_PAGE, UNSAFE_SPEED, MissionShape, Proble
 from gcs.service.flights.active import VehicleAnswer
 from gcs.service.flights.live_queue import LiveQueue
 from gcs.service.flights.service import FlightService
-from gcs.service.states import FlightState
+from gcs.service.states import FlightState, StateConflict
 from gcs.service.storage import NotFound
 from gcs.service.storage.tables import FlightRow
 from planner.live_replan import NewObject
@@ -42,6 +43,14 @@ ANSWERS: dict[int | str, dict[str, Any]] = {
         "that belongs to another open flight, or a vehicle that is offline",
     },
 }
+
+
+def _controlled(responses: dict[int | str, dict[str, Any]]) -> dict[str, Any]:
+    """A mutating route on one flight, refused (409) where another live service controls
+    it (several services on one database: docs/service.md, "Scaling out")."""
+    options = mutating(responses)
+    options["dependencies"] = [*options["dependencies"], Controlled]
+    return options
 
 
 def _links(*operations: str) -> dict[str, dict[str, Any]]:
@@ -203,7 +212,7 @@ async def get_flight(flight_id: str, flights: FlightsDep) -> FlightOut:
 
 
 @router.post(
-    "/{flight_id}/upload", operation_id="uploadFlight", **mutating({**ANSWERS, **UNSAFE_SPEED})
+    "/{flight_id}/upload", operation_id="uploadFlight", **_controlled({**ANSWERS, **UNSAFE_SPEED})
 )
 async def upload(flight_id: str, flights: FlightsDep) -> FlightAction:
     """Upload every UAV's mission at once, each verified by reading it back. From now on the
@@ -216,7 +225,7 @@ async def upload(flight_id: str, flights: FlightsDep) -> FlightAction:
     "/{flight_id}/start",
     status_code=status.HTTP_202_ACCEPTED,
     operation_id="startFlight",
-    **mutating(ANSWERS),
+    **_controlled(ANSWERS),
 )
 async def start(flight_id: str, flights: FlightsDep) -> FlightOut:
     """Arm, take off and hold every vehicle over its start; when all hold, start every
@@ -226,20 +235,20 @@ async def start(flight_id: str, flights: FlightsDep) -> FlightOut:
     return flight_out(await flights.start(flight_id))
 
 
-@router.post("/{flight_id}/pause", operation_id="pauseFlight", **mutating(ANSWERS))
+@router.post("/{flight_id}/pause", operation_id="pauseFlight", **_controlled(ANSWERS))
 async def pause(flight_id: str, flights: FlightsDep, operator: OperatorDep) -> FlightAction:
     """The operator's fleet hold: every vehicle stops where it is until `/continue` (the
     passing order never lifts it). During the start it cancels the start."""
     return await _action(flights, flight_id, await operator.hold(flight_id))
 
 
-@router.post("/{flight_id}/continue", operation_id="continueFlight", **mutating(ANSWERS))
+@router.post("/{flight_id}/continue", operation_id="continueFlight", **_controlled(ANSWERS))
 async def resume(flight_id: str, flights: FlightsDep, operator: OperatorDep) -> FlightAction:
     """Lift the operator's hold on every vehicle of a paused (or flying) flight."""
     return await _action(flights, flight_id, await operator.resume(flight_id))
 
 
-@router.post("/{flight_id}/abort", operation_id="abortFlight", **mutating(ANSWERS))
+@router.post("/{flight_id}/abort", operation_id="abortFlight", **_controlled(ANSWERS))
 async def abort(
     flight_id: str, request: AbortIn, flights: FlightsDep, operator: OperatorDep
 ) -> FlightAction:
@@ -250,13 +259,13 @@ async def abort(
     return await _action(flights, flight_id, answers)
 
 
-@router.post("/{flight_id}/cancel", operation_id="cancelFlight", **mutating(ANSWERS))
+@router.post("/{flight_id}/cancel", operation_id="cancelFlight", **_controlled(ANSWERS))
 async def cancel(flight_id: str, flights: FlightsDep) -> FlightOut:
     """Release the vehicles of a flight that has not started (created, uploaded)."""
     return flight_out(await flights.cancel(flight_id))
 
 
-@router.post("/{flight_id}/objects", operation_id="reportObject", **mutating(ANSWERS))
+@router.post("/{flight_id}/objects", operation_id="reportObject", **_controlled(ANSWERS))
 async def report_object(flight_id: str, request: ObjectIn, flights: FlightsDep) -> ReplanOut:
     """Report a non-UAV object during the flight: only the UAVs whose remaining path it
     touches are replanned (from where they are) and get a new mission; the answer says
@@ -286,7 +295,12 @@ async def events(
     return [EventOut.model_validate(e, from_attributes=True) for e in rows]
 
 
-@router.get("/{flight_id}/live-state", operation_id="flightLiveState", responses=ANSWERS)
+@router.get(
+    "/{flight_id}/live-state",
+    operation_id="flightLiveState",
+    responses=ANSWERS,
+    dependencies=[Controlled],
+)
 async def live_state(flight_id: str, flights: FlightsDep) -> dict[str, Any]:
     """What the live stream sends as its periodic `state` message, once."""
     return await flights.snapshot(flight_id)
@@ -358,6 +372,11 @@ async def live(websocket: WebSocket, flight_id: str) -> None:
         if not admitted:
             return
         flights = services.flights
+        try:
+            await services.control.require(flight_id)
+        except StateConflict as exc:
+            await websocket.close(code=4409, reason=str(exc)[:120])
+            return
         try:
             queue = await flights.listen(flight_id)
         except LookupError as exc:

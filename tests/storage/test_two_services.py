@@ -1,0 +1,111 @@
+"""Several service processes, one database (issue 27, part 4), for real: two `mvo-gcs
+serve` processes on one PostgreSQL database and mock vehicles both can reach. A flight is
+controlled by the service that uploaded it; the other refuses requests for it with a 409
+naming where it lives. The controlling process is killed (`kill -9`) mid-flight: the
+other takes the flight over, nothing is uploaded again, the vehicles fly on, and hold and
+abort (land) work from the survivor. A planning job is run by one service only.
+
+How fast the takeover is, is bench/takeover_bench.py's business: nothing here is timed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from sqlalchemy import create_engine, func, select
+
+from gcs.service.storage.tables import JobRow, UploadRow
+from planner.cases import load_case
+from tests.e2e.flying import Flight, fleet_at_starts, wait_for
+from tests.storage.pair import pair, taken_over_by, wait_taken_over
+from tests.storage.postgres import PostgresServer
+
+pytestmark = pytest.mark.slow
+SPEEDUP = 2.0  # slow enough that the vehicles are still flying when the takeover is done
+
+
+@pytest.fixture
+def database_url(postgres: PostgresServer) -> Iterator[str]:
+    with postgres.database() as url:
+        yield url
+
+
+def test_the_survivor_takes_over_a_killed_services_flight(
+    tmp_path: Path, database_url: str
+) -> None:
+    with (
+        fleet_at_starts(load_case("case-6"), speedup=SPEEDUP).running() as sim,
+        pair(tmp_path, database_url) as (a, b),
+        a.client() as on_a,
+        b.client() as on_b,
+    ):
+        flight = Flight.make(on_a, sim, "case-6")
+        flight.fly()  # uploaded and started by a: a controls it
+
+        assert on_b.get(f"/flights/{flight.id}").json()["state"] == "flying"  # stored: anyone
+        refused = on_b.post(f"/flights/{flight.id}/pause")
+        assert refused.status_code == 409, refused.text
+        assert "service a at " + a.url in refused.json()["detail"]
+        assert on_b.get(f"/flights/{flight.id}/live-state").status_code == 409
+        vehicle = flight.vehicle_ids[0]
+        held_elsewhere = on_b.post(f"/vehicles/{vehicle}/hold")
+        assert held_elsewhere.status_code == 409, held_elsewhere.text
+        assert "service a at " + a.url in held_elsewhere.json()["detail"]
+
+        a.kill()  # kill -9: no clean stop, no release
+        wait_taken_over(on_b, flight.id, "b")
+        assert flight.airborne(), "the vehicles landed before the takeover: slow the mock"
+        assert "AUTO" in flight.modes()  # they fly their missions on, unfollowed
+        flight.client = on_b
+        note = on_b.get(f"/flights/{flight.id}").json()["note"]
+        assert note.startswith("taken over by service b at " + b.url + " from a"), note
+
+        wait_for(
+            lambda: all(
+                v["online"] for v in on_b.get(f"/flights/{flight.id}/live-state").json()["vehicles"]
+            ),
+            30,
+            "the vehicles re-attached on b",
+        )
+        held = flight.post("pause")
+        assert held.status_code == 200, held.text
+        assert [v["ok"] for v in held.json()["vehicles"]] == [True] * len(flight.vehicle_ids)
+        aborted = flight.post("abort", mode="land")
+        assert aborted.status_code == 200, aborted.text
+        assert all(v["ok"] for v in aborted.json()["vehicles"]), aborted.json()
+        wait_for(lambda: flight.modes() == {"LAND"}, 30, "every vehicle in LAND")
+        flight.wait_state("aborted")
+        assert not flight.airborne()
+        assert taken_over_by(on_b, flight.id, "b") is not None
+
+    engine = create_engine(database_url)
+    try:
+        with engine.connect() as connection:
+            uploads = connection.scalar(
+                select(func.count()).select_from(UploadRow).where(UploadRow.flight_id == flight.id)
+            )
+            owners = set(connection.scalars(select(JobRow.owner_id)))
+    finally:
+        engine.dispose()
+    assert uploads == len(flight.vehicle_ids)  # each mission once: nothing uploaded again
+    assert owners == {"a"}  # the plan's job was claimed and run by a alone
+    assert not [p for p in b.problems() if "Traceback" in p or '" 500' in p]
+
+
+def test_a_job_is_run_by_the_service_that_took_it(tmp_path: Path, database_url: str) -> None:
+    """Plans asked of both services at once: each job is claimed once, by one of them."""
+    scenario = load_case("case-1").model_dump(mode="json")
+    with pair(tmp_path, database_url) as (a, b), a.client() as on_a, b.client() as on_b:
+        sid = on_a.post("/scenarios", json=scenario).json()["id"]
+        for client in (on_a, on_b, on_a, on_b):
+            answer = client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30})
+            assert answer.status_code == 201, answer.text
+    engine = create_engine(database_url)
+    try:
+        with engine.connect() as connection:
+            rows = list(connection.execute(select(JobRow.owner_id, JobRow.state)))
+    finally:
+        engine.dispose()
+    assert sorted(rows) == [("a", "done"), ("a", "done"), ("b", "done"), ("b", "done")]
