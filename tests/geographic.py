@@ -110,3 +110,60 @@ def densely(points: np.ndarray, step: float) -> np.ndarray:
 def clearance_m(path_m: np.ndarray, shape_m: shapely.Geometry) -> float:
     """The least distance in metres of any point of a sampled path from a shape."""
     return float(shapely.distance(shapely.points(path_m), shape_m).min())
+
+
+# ---------------------------------------------------------------- KML, as Google Earth writes it
+
+
+def placemark(name: str, geometry: str, **data: Any) -> str:
+    extended = "".join(f'<Data name="{k}"><value>{v}</value></Data>' for k, v in data.items())
+    extended = f"<ExtendedData>{extended}</ExtendedData>" if data else ""
+    return f"<Placemark><name>{name}</name>{extended}{geometry}</Placemark>"
+
+
+def kml_polygon(*rings: list[tuple[float, float]]) -> str:
+    def coordinates(points: list[tuple[float, float]]) -> str:
+        closed = [*points, points[0]]
+        return " ".join(",".join(str(c) for c in lon_lat(e, n)) for e, n in closed)
+
+    outer, *inner = rings
+    holes = "".join(
+        f"<innerBoundaryIs><LinearRing><coordinates>{coordinates(r)}</coordinates>"
+        "</LinearRing></innerBoundaryIs>"
+        for r in inner
+    )
+    return (
+        f"<Polygon><outerBoundaryIs><LinearRing><coordinates>{coordinates(outer)}"
+        f"</coordinates></LinearRing></outerBoundaryIs>{holes}</Polygon>"
+    )
+
+
+def kml_point(east: float, north: float) -> str:
+    coordinates = ",".join(str(c) for c in lon_lat(east, north))
+    return f"<Point><coordinates>{coordinates}</coordinates></Point>"
+
+
+def kml(*placemarks: str, cell: float | None = 10.0) -> str:
+    """A KML document of placemarks in one folder, the cell size in its ExtendedData."""
+    data = (
+        f'<ExtendedData><Data name="cell_size_m"><value>{cell}</value></Data></ExtendedData>'
+        if cell
+        else ""
+    )
+    return (
+        '<?xml version="1.0" encoding="UTF-8"?><kml xmlns="http://www.opengis.net/kml/2.2">'
+        f"<Document><name>yard</name>{data}<Folder><name>plan</name>"
+        f"{''.join(placemarks)}</Folder></Document></kml>"
+    )
+
+
+SQUARE = [(0, 0), (300, 0), (300, 200), (0, 200)]
+YARD_KML = [
+    # a 300 x 200 m yard: its area, a barn, a mast, one UAV's start and goal, a rally point
+    placemark("area", kml_polygon(SQUARE)),
+    placemark("barn", kml_polygon([(120, 60), (180, 60), (180, 140), (120, 140)]), role="no-fly"),
+    placemark("no-fly mast", kml_point(60, 150), radius_m=15),
+    placemark("start alpha", kml_point(25, 25), speed_m_s=4),
+    placemark("goal alpha", kml_point(275, 175)),
+    placemark("rally", kml_point(20, 180)),
+]

@@ -10,6 +10,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from pydantic import ValidationError
+
 from gcs.cli.planning_options import (
     ScenarioFileError,
     add_planning_arguments,
@@ -17,7 +19,8 @@ from gcs.cli.planning_options import (
     positive_int,
     read_scenario_file,
 )
-from gcs.mission.geographic import wgs84_trajectories
+from gcs.mission.area_imports import from_kml, from_plan_files
+from gcs.mission.geographic import GeographicError, derive_file, wgs84_trajectories
 from planner.cases import CASES, PAPER_POPULATIONS
 from planner.optimizers import ALGORITHMS, ObjectiveError, OptimizerInputError
 
@@ -144,6 +147,42 @@ def _plan(args: argparse.Namespace) -> int:
     return 0 if result.feasible else 1
 
 
+def _import(args: argparse.Namespace) -> int:
+    """.plan files or one KML to a geographic scenario, checked by deriving its grid."""
+    kml = [f for f in args.files if f.suffix.lower() == ".kml"]
+    try:
+        if kml:
+            if len(args.files) > 1:
+                raise ScenarioFileError("give one KML file, or .plan files only")
+            data = from_kml(_read_bytes(kml[0]), args.cell_size)
+        elif args.cell_size is None:
+            raise ScenarioFileError(".plan files need --cell-size")
+        else:
+            data = from_plan_files(args.files, args.cell_size, args.name)
+        if args.name:
+            data["properties"]["name"] = args.name
+        scenario = derive_file(data).scenario
+    except GeographicError as exc:
+        raise ScenarioFileError(f"cannot import: {exc}") from exc
+    except ValidationError as exc:
+        raise ScenarioFileError(f"cannot import: {exc.errors()[0]['msg']}") from exc
+    text = json.dumps(data, indent=2) + "\n"
+    if args.output:
+        args.output.write_text(text)
+    else:
+        print(text, end="")
+    size = f"{scenario.grid.width} x {scenario.grid.height}"
+    print(f"{scenario.name}: {len(scenario.uavs)} UAVs on {size} cells", file=sys.stderr)
+    return 0
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise ScenarioFileError(f"cannot read {path}: {exc.strerror}") from exc
+
+
 def _bench_planner(args: argparse.Namespace) -> int:
     bench = _experiments("planner_bench")
     config = bench.PlannerBenchConfig(
@@ -223,6 +262,19 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     add_planning_arguments(plan)
     plan.add_argument("-o", "--output", type=Path, help="write the plan here (default: stdout)")
     plan.set_defaults(handler=_plan)
+
+    imports = commands.add_parser(
+        "import",
+        help="make QGroundControl .plan files (one per UAV) or a KML file into a geographic "
+        "scenario (GeoJSON, docs/planner.md)",
+    )
+    imports.add_argument("files", nargs="+", type=Path, metavar="FILE")
+    imports.add_argument(
+        "--cell-size", type=float, metavar="METRES", help="grid cell size (a KML may hold it)"
+    )
+    imports.add_argument("--name", help="the scenario's name (default: the files' names)")
+    imports.add_argument("-o", "--output", type=Path, help="write here (default: stdout)")
+    imports.set_defaults(handler=_import)
 
     bench = commands.add_parser("bench", help="speed benchmarks (results under bench/)")
     benches = bench.add_subparsers(dest="bench", required=True, metavar="BENCH")

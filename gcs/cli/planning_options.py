@@ -12,6 +12,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from gcs.mission.area_imports import from_kml
 from gcs.mission.geodesy import GridFrame
 from gcs.mission.geographic import GeographicError, derive_file, looks_geographic
 from planner.cases import CASES, load_case
@@ -34,7 +35,7 @@ def positive_int(text: str) -> int:
 def add_planning_arguments(parser: argparse.ArgumentParser, iterations: int = 1000) -> None:
     parser.add_argument(
         "scenario",
-        help="scenario JSON file, geographic scenario (.geojson, docs/planner.md), "
+        help="scenario JSON file, geographic scenario (.geojson or .kml, docs/planner.md), "
         "or case-1 .. case-6",
     )
     parser.add_argument("--algorithm", choices=sorted(ALGORITHMS), default="mvo")
@@ -95,8 +96,9 @@ def read_scenario_file(source: str) -> ScenarioFile:
         reason = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
         raise ScenarioFileError(f"cannot read scenario {source}: {reason}") from exc
     try:
-        if path.suffix.lower() == ".geojson" or looks_geographic(_json_or_none(text)):
-            derived = derive_file(text)
+        suffix = path.suffix.lower()
+        if suffix == ".kml" or suffix == ".geojson" or looks_geographic(_json_or_none(text)):
+            derived = derive_file(from_kml(text) if suffix == ".kml" else text)
             return ScenarioFile(derived.scenario, derived.frame)
         return ScenarioFile(load_scenario(text))
     except ValidationError as exc:

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
+from gcs.mission.fence import FencePlan, LatLon
 
 GROUND_STATION = "mvo-gcs"
 VEHICLE_TYPE_QUADROTOR = 2  # MAV_TYPE, what QGC writes as vehicleType
@@ -61,12 +62,24 @@ def write_plan(mission: Mission, path: str | Path) -> None:
     Path(path).write_text(plan_text(mission))
 
 
-def plan_text(mission: Mission, notes: str | None = None) -> str:
-    return json.dumps(plan_document(mission, notes), indent=4, allow_nan=False) + "\n"
+def plan_text(
+    mission: Mission,
+    notes: str | None = None,
+    fence: FencePlan | None = None,
+    rally_alt_m: float = 0.0,
+) -> str:
+    document = plan_document(mission, notes, fence, rally_alt_m)
+    return json.dumps(document, indent=4, allow_nan=False) + "\n"
 
 
-def plan_document(mission: Mission, notes: str | None = None) -> dict[str, Any]:
-    """The `.plan` JSON of a mission, geofence and rally points empty; `notes` go in a
+def plan_document(
+    mission: Mission,
+    notes: str | None = None,
+    fence: FencePlan | None = None,
+    rally_alt_m: float = 0.0,
+) -> dict[str, Any]:
+    """The `.plan` JSON of a mission, with the fence and rally points when given (those
+    without an altitude of their own at `rally_alt_m` above home); `notes` go in a
     top-level key of their own, which QGroundControl and MAVSDK pass over."""
     home, items = _split_home(mission)
     speed = next(
@@ -87,12 +100,31 @@ def plan_document(mission: Mission, notes: str | None = None) -> dict[str, Any]:
             "plannedHomePosition": list(home),
             "items": [_simple_item(item, k + 1) for k, item in enumerate(items)],
         },
-        "geoFence": {"version": 2, "circles": [], "polygons": []},
-        "rallyPoints": {"version": 2, "points": []},
+        **_fence_and_rally(fence or FencePlan(), rally_alt_m),
     }
     if notes:
         document["notes"] = notes
     return document
+
+
+def _fence_and_rally(fence: FencePlan, rally_alt_m: float) -> dict[str, Any]:
+    """QGC's `geoFence` (version 2: polygons and circles, each with `inclusion`, vertices
+    [lat, lon], open rings) and `rallyPoints` (version 2: [lat, lon, alt above home])."""
+
+    def polygon(vertices: tuple[LatLon, ...], inclusion: bool) -> dict[str, Any]:
+        return {"inclusion": inclusion, "polygon": [list(v) for v in vertices], "version": 1}
+
+    polygons = [polygon(p, True) for p in fence.inclusion_polygons]
+    polygons += [polygon(p, False) for p in fence.exclusion_polygons]
+    circles = [
+        {"circle": {"center": [lat, lon], "radius": radius}, "inclusion": False, "version": 1}
+        for lat, lon, radius in fence.exclusion_circles
+    ]
+    rally = [[p[0], p[1], p[2] if len(p) == 3 else rally_alt_m] for p in fence.rally_points]
+    return {
+        "geoFence": {"version": 2, "circles": circles, "polygons": polygons},
+        "rallyPoints": {"version": 2, "points": rally},
+    }
 
 
 def _split_home(mission: Mission) -> tuple[Home, tuple[MissionItem, ...]]:

@@ -34,8 +34,10 @@ from pydantic import BaseModel, TypeAdapter
 from sqlalchemy import select
 
 from gcs.mavlink.mission_item import Autopilot, Mission
+from gcs.mission.fence import fence_of
 from gcs.mission.files import plan_text, waypoints_text
 from gcs.mission.flight_plan import UnsafeSpeed, flight_plan
+from gcs.mission.geographic import load_geographic
 from gcs.service.metrics import ServiceMetrics
 from gcs.service.storage import NotFound, PlanRepository, ScenarioRepository
 from gcs.service.storage.tables import PlanRow
@@ -118,9 +120,16 @@ class Answers:
         return len(self.missions) + sum(len(f) for f in files)
 
 
-def answers(plan_body: dict[str, Any], scenario_body: dict[str, Any], shape: Shape) -> Answers:
-    """The work itself, on a worker thread: validation, pacing and rendering."""
+def answers(
+    plan_body: dict[str, Any],
+    scenario_body: dict[str, Any],
+    shape: Shape,
+    geographic: dict[str, Any] | None = None,
+) -> Answers:
+    """The work itself, on a worker thread: validation, pacing and rendering; the `.plan`
+    files of a geographic scenario carry its fence and rally points."""
     scenario = Scenario(**scenario_body)
+    fence = fence_of(load_geographic(geographic)) if geographic else None
     plan = Plan(**plan_body)
     autopilot = Autopilot[shape.autopilot.upper()]
     try:
@@ -140,7 +149,10 @@ def answers(plan_body: dict[str, Any], scenario_body: dict[str, Any], shape: Sha
     missions = flight.missions
     return Answers(
         missions=MISSIONS.dump_json([mission_out(u, m) for u, m in missions.items()]),
-        plans={u: plan_text(m, flight.notes(u)).encode() for u, m in missions.items()},
+        plans={
+            u: plan_text(m, flight.notes(u), fence, shape.altitude_m).encode()
+            for u, m in missions.items()
+        },
         waypoints={u: waypoints_text(m).encode() for u, m in missions.items()},
     )
 
@@ -244,7 +256,9 @@ class MissionFiles:
             scenario = await self.scenarios.get(scenario_id)
             self.running.inc()
             try:
-                made = await asyncio.to_thread(answers, plan.body, scenario.body, shape)
+                made = await asyncio.to_thread(
+                    answers, plan.body, scenario.body, shape, scenario.geographic
+                )
             except (UnflyablePlan, UnsafeSpeed) as exc:
                 self.computations.labels(type(exc).__name__).inc()
                 raise

@@ -20,7 +20,7 @@ import socket
 import threading
 from collections.abc import AsyncIterator, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mavsdk.asyncio as mavsdk  # the test extra installs it: a missing one must fail
@@ -30,9 +30,12 @@ from pymavlink import mavutil
 
 from gcs.mavlink.mission_item import Autopilot, Frame, Mission, MissionItem
 from gcs.mission.build import build_missions
-from gcs.mission.files import write_plan, write_waypoints
+from gcs.mission.fence import fence_items, fence_of, rally_items
+from gcs.mission.files import plan_text, write_plan, write_waypoints
+from gcs.mission.geographic import load_geographic
 from planner.cases import load_case
 from planner.pipeline import PlannerSettings, plan
+from tests.geographic import EXAMPLE
 
 GLOBAL_INT = 5
 MAV_TYPE_QUADROTOR = 2
@@ -156,3 +159,24 @@ async def test_mavsdk_rejects_a_plan_without_a_mission(importer: Importer, tmp_p
     path.write_text('{"fileType": "Plan", "version": 1}')
     with pytest.raises(mavsdk.MavsdkError, match=r"(?i)parse"):
         await importer.plugin.import_qgroundcontrol_mission(str(path))
+
+
+async def test_mavsdk_imports_the_fence_and_rally_points_of_our_plan(
+    importer: Importer, case_6: dict[Autopilot, list[Mission]], tmp_path: Path
+) -> None:
+    """A geographic scenario's `.plan`: MAVSDK reads its `geoFence` and `rallyPoints` into
+    the FENCE and RALLY items our flights upload (issue 26, item 2)."""
+    fence = fence_of(load_geographic(EXAMPLE.read_text()))
+    fence = replace(fence, rally_points=((-35.3631, 149.1653), (-35.3629, 149.1656, 25.0)))
+    assert fence.inclusion_polygons and fence.exclusion_polygons and fence.exclusion_circles
+    path = tmp_path / "fenced.plan"
+    path.write_text(plan_text(case_6[importer.autopilot][0], fence=fence, rally_alt_m=15.0))
+    imported = await importer.plugin.import_qgroundcontrol_mission(str(path))
+    for theirs, sent in (
+        (imported.geofence_items, fence_items(fence)),
+        (imported.rally_items, rally_items(fence, default_alt_m=15.0)),
+    ):
+        assert len(theirs) == len(sent)
+        for a, b in zip(theirs, sent, strict=True):
+            assert (a.command, a.x, a.y) == (b.command, b.x, b.y)
+            assert (a.param1, a.z) == pytest.approx((b.params[0], b.z), abs=1e-3)

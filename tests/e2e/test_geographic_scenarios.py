@@ -9,10 +9,23 @@ import json
 
 import numpy as np
 
-from tests.geographic import EXAMPLE, clearance_m, densely, shape_in_metres, to_metres
+from gcs.mission.fence import fence_of
+from gcs.mission.geographic import load_geographic
+from tests.geographic import (
+    EXAMPLE,
+    YARD_KML,
+    clearance_m,
+    densely,
+    kml,
+    kml_point,
+    placemark,
+    shape_in_metres,
+    to_metres,
+)
 from tests.service_process import ServiceProcess
 
 GEOJSON = {"Content-Type": "application/geo+json"}
+KML = {"Content-Type": "application/vnd.google-earth.kml+xml"}
 
 
 def test_a_geographic_scenario_is_derived_planned_and_answered_in_wgs84(
@@ -59,3 +72,38 @@ def test_a_geographic_scenario_is_derived_planned_and_answered_in_wgs84(
         mast_lon, mast_lat = zones[1]["geometry"]["coordinates"]
         path = densely(to_metres(points[:, 1], points[:, 2], mast_lat, mast_lon), 0.05)
         assert np.hypot(*path.T).min() - zones[1]["properties"]["radius_m"] >= radius_m + 1.0
+
+
+def test_a_kml_scenario_is_stored_as_geojson_and_its_plan_files_carry_the_fence(
+    service: ServiceProcess,
+) -> None:
+    """Issue 26, item 2: KML in, the fence and rally points out in QGroundControl's
+    `.plan`, and MAVSDK-style readers get what the flight would upload."""
+    with service.client() as client:
+        created = client.post("/scenarios", content=kml(*YARD_KML), headers=KML)
+        assert created.status_code == 201, created.text
+        stored = created.json()
+        roles = [f["properties"]["role"] for f in stored["geographic"]["features"]]
+        assert sorted(roles) == ["area", "goal", "no-fly", "no-fly", "rally", "start"]
+        planned = client.post(f"/scenarios/{stored['id']}/plans", json={"wait_s": 60})
+        assert planned.status_code == 201, planned.text
+        plan_id = planned.json()["id"]
+        answer = client.get(f"/plans/{plan_id}/missions/alpha.plan")
+        assert answer.status_code == 200, answer.text
+        document = answer.json()
+        fence = fence_of(load_geographic(stored["geographic"]))
+        polygons = document["geoFence"]["polygons"]
+        assert [p["inclusion"] for p in polygons] == [True, False]
+        assert polygons[0]["polygon"] == [list(v) for v in fence.inclusion_polygons[0]]
+        (circle,) = document["geoFence"]["circles"]
+        assert circle["inclusion"] is False and circle["circle"]["radius"] == 15.0
+        (rally,) = document["rallyPoints"]["points"]
+        assert rally[:2] == list(fence.rally_points[0][:2])
+
+        refused = client.post(
+            "/scenarios", content=kml(placemark("hangar", kml_point(1, 1))), headers=KML
+        )
+        assert refused.status_code == 422
+        assert refused.json()["feature"] == "Placemark 0 (hangar)"
+        broken = client.post("/scenarios", content=b"<kml><Document>", headers=KML)
+        assert broken.status_code == 422 and "not KML" in broken.json()["detail"]

@@ -12,8 +12,9 @@ from fastapi.responses import JSONResponse
 from fastapi.routing import APIRoute
 from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
-from starlette.types import Message
+from starlette.types import Message, Scope
 
+from gcs.mission.area_imports import KML_MEDIA_TYPE, from_kml, is_kml
 from gcs.mission.geographic import (
     GEOJSON_MEDIA_TYPE,
     GeographicError,
@@ -42,7 +43,8 @@ from planner.scenario import Scenario
 
 
 class GeographicRoute(APIRoute):
-    """`POST /scenarios` with `Content-Type: application/geo+json`: the file is made
+    """`POST /scenarios` with `Content-Type: application/geo+json` (or a KML document,
+    `application/vnd.google-earth.kml+xml`, made into that GeoJSON first): the file is made
     into its grid scenario first, off the event loop, and the endpoint then takes that
     as it takes a grid scenario in JSON, with the file kept beside it. A file that
     describes nothing plannable is a 422 naming the feature."""
@@ -53,11 +55,13 @@ class GeographicRoute(APIRoute):
             return handler
 
         async def route(request: Request) -> Response:
-            if not is_geojson(request.headers.get("content-type")):
+            content_type = request.headers.get("content-type")
+            kml = is_kml(content_type)
+            if not (kml or is_geojson(content_type)):
                 return await handler(request)
             body = await request.body()
             try:
-                document = json.loads(body)
+                document = await run_in_threadpool(from_kml, body) if kml else json.loads(body)
                 derived = await run_in_threadpool(derive_file, document)
             except UnicodeDecodeError:
                 raise RequestValidationError(
@@ -75,11 +79,19 @@ class GeographicRoute(APIRoute):
             except GeographicError as exc:
                 return JSONResponse({"detail": str(exc), "feature": exc.feature}, 422)
             grid = derived.scenario.model_dump_json().encode()
-            derived_request = Request(request.scope, _replay(grid))
+            derived_request = Request(_as_json(request.scope, len(grid)), _replay(grid))
             derived_request.state.geographic = document
             return await handler(derived_request)
 
         return route
+
+
+def _as_json(scope: Scope, length: int) -> Scope:
+    """The request's scope, its body now the derived grid scenario in JSON."""
+    replaced = {b"content-type", b"content-length"}
+    headers = [(k, v) for k, v in scope["headers"] if k.lower() not in replaced]
+    headers += [(b"content-type", b"application/json"), (b"content-length", b"%d" % length)]
+    return {**scope, "headers": headers}
 
 
 def _replay(body: bytes) -> Callable[[], Coroutine[Any, Any, Message]]:
@@ -110,7 +122,12 @@ def _out(row: ScenarioRow) -> ScenarioOut:
 
 
 GEOGRAPHIC_BODY = {
-    "requestBody": {"content": {GEOJSON_MEDIA_TYPE: {"schema": geojson_schema()}}},
+    "requestBody": {
+        "content": {
+            GEOJSON_MEDIA_TYPE: {"schema": geojson_schema()},
+            KML_MEDIA_TYPE: {"schema": {"type": "string", "format": "binary"}},
+        }
+    },
 }
 
 
@@ -137,7 +154,9 @@ async def create_scenario(
 
     Or a geographic scenario (`Content-Type: application/geo+json`): a GeoJSON
     FeatureCollection with the operating area, no-fly zones, starts and goals in WGS84
-    and `cell_size_m` (docs/planner.md). Its grid scenario is derived, stored with the
+    and `cell_size_m` (docs/planner.md); or the same drawn in KML
+    (`application/vnd.google-earth.kml+xml`, placemarks named or tagged by role), stored
+    as its GeoJSON. Its grid scenario is derived, stored with the
     file beside it and returned; a file that describes nothing plannable (a ring that
     crosses itself, a start in a zone, a goal outside the area, an area too large for
     the grid) is a 422 whose `feature` names the feature at fault."""
