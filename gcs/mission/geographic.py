@@ -126,6 +126,13 @@ class FeatureProperties(_Model):
     name: str | None = Field(default=None, max_length=200)
     speed_m_s: Number | None = Field(default=None, gt=0, le=1_000)
     radius_m: Number | None = Field(default=None, gt=0, le=100_000)
+    vehicle: str | None = Field(
+        default=None,
+        min_length=1,
+        max_length=128,
+        description="a start placed where this registered vehicle is when the file is "
+        "posted (its geometry null): the service fills in the position",
+    )
 
 
 class Feature(_Model):
@@ -288,7 +295,37 @@ def derive(source: GeographicScenario) -> DerivedScenario:
 
 
 def derive_file(data: dict[str, Any] | str | bytes) -> DerivedScenario:
+    if isinstance(data, dict) and (unplaced := vehicle_starts(data)):
+        where, vehicle = unplaced[0][1:]
+        raise GeographicError(
+            where,
+            f"starts where vehicle {vehicle!r} is now: only the service that reaches it "
+            "can place it (POST /scenarios)",
+        )
     return derive(load_geographic(data))
+
+
+def vehicle_starts(data: Any) -> list[tuple[int, str, str]]:
+    """The starts still to be placed where a vehicle is (`"vehicle"` given, geometry
+    null), as (feature index, where, vehicle id), in the raw file before it is read."""
+    features = data.get("features") if isinstance(data, dict) else None
+    found = []
+    for index, feature in enumerate(features if isinstance(features, list) else []):
+        properties = feature.get("properties") if isinstance(feature, dict) else None
+        if not isinstance(properties, dict) or feature.get("geometry") is not None:
+            continue
+        vehicle, uav = properties.get("vehicle"), properties.get("uav")
+        if properties.get("role") == "start" and isinstance(vehicle, str) and vehicle:
+            found.append((index, f"features[{index}] (start of {uav!r})", vehicle))
+    return found
+
+
+def placed_at(data: dict[str, Any], index: int, lat: float, lon: float) -> dict[str, Any]:
+    """A copy of the file with feature `index` a Point at (lat, lon)."""
+    features = list(data["features"])
+    point = {"type": "Point", "coordinates": [round(lon, 7), round(lat, 7)]}
+    features[index] = {**features[index], "geometry": point}
+    return {**data, "features": features}
 
 
 def _add_end(ends: dict[str, _Ends], index: int, where: str, feature: Feature) -> None:

@@ -12,17 +12,21 @@ import pytest
 
 from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
+from sitl_mock import VehicleConfig
 from tests.geographic import (
     EXAMPLE,
     clearance_m,
     densely,
     field,
+    lon_lat,
     polygon,
     rectangle,
     shape_in_metres,
     to_metres,
 )
-from tests.inprocess.service import InProcessService
+from tests.inprocess.flying import register
+from tests.inprocess.service import InProcessService, until
+from tests.inprocess.vehicles import FAST_BOOT
 
 pytestmark = [pytest.mark.virtual_clock]
 GEOJSON = {"Content-Type": "application/geo+json"}
@@ -143,11 +147,55 @@ async def test_a_malformed_file_is_a_422_saying_where(gcs: InProcessService) -> 
     assert (await gcs.client.get("/scenarios")).json() == []
 
 
-async def test_the_api_document_describes_both_bodies(gcs: InProcessService) -> None:
+async def test_the_api_document_describes_the_three_bodies(gcs: InProcessService) -> None:
     document = (await gcs.client.get("/openapi.json")).json()
     body = document["paths"]["/scenarios"]["post"]["requestBody"]["content"]
-    assert set(body) == {"application/json", "application/geo+json"}
+    kml = "application/vnd.google-earth.kml+xml"
+    assert set(body) == {"application/json", "application/geo+json", kml}
     geo = body["application/geo+json"]["schema"]
     assert "$defs" not in json.dumps(geo) and geo["properties"]["type"]["const"] == (
         "FeatureCollection"
     )
+
+
+def _vehicle_start(document: dict[str, Any], vehicle: str) -> tuple[dict[str, Any], int]:
+    """The file with UAV 'a' starting where `vehicle` is (a null geometry)."""
+    features = document["features"]
+    index = next(k for k, f in enumerate(features) if f["properties"]["role"] == "start")
+    features[index] = {
+        "type": "Feature",
+        "geometry": None,
+        "properties": {"role": "start", "uav": "a", "vehicle": vehicle},
+    }
+    return document, index
+
+
+async def test_a_start_is_placed_where_a_registered_vehicle_is_now(gcs: InProcessService) -> None:
+    lon, lat = lon_lat(45, 35)
+    config = VehicleConfig(sysid=1, home=(lat, lon, 0.0), transport="memory", **FAST_BOOT)
+    sim = await gcs.vehicles.start([config])
+    vehicle = await register(gcs.client, sim.connection_string(1))
+    document, index = _vehicle_start(field(), vehicle)
+
+    async def placed() -> Any:
+        answer = await post(gcs, document)
+        if answer.status_code == 422:  # connecting, or its EKF has no position yet
+            assert answer.json()["feature"] == f"features[{index}] (start of 'a')"
+            assert "has no position yet" in answer.json()["detail"], answer.text
+            return None
+        return answer
+
+    created = await until(placed, 30, "a start placed where the vehicle is")
+    assert created.status_code == 201, created.text
+    stored = created.json()["geographic"]["features"][index]
+    assert stored["geometry"]["coordinates"] == pytest.approx([lon, lat], abs=2e-7)
+    assert stored["properties"]["vehicle"] == vehicle
+    assert created.json()["scenario"]["uavs"][0]["start"] == [4, 3]  # (45, 35) m, 10 m cells
+
+    unknown, index = _vehicle_start(field(), "no-such-vehicle")
+    refused = await post(gcs, unknown)
+    assert refused.status_code == 422
+    assert refused.json() == {
+        "detail": f"features[{index}] (start of 'a'): vehicle 'no-such-vehicle' is not registered",
+        "feature": f"features[{index}] (start of 'a')",
+    }

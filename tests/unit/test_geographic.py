@@ -323,3 +323,11 @@ def test_an_area_the_size_of_a_continent_is_refused_before_it_is_cut() -> None:
         role="area",
     )
     assert "more than the planner's 500 x 500" in str(refusal(data))
+
+
+def test_a_start_where_a_vehicle_is_cannot_be_placed_without_the_service() -> None:
+    data = field()
+    data["features"][1] = feature(None, role="start", uav="a", vehicle="v1")  # type: ignore[arg-type]
+    error = refusal(data)
+    assert error.feature == "features[1] (start of 'a')"
+    assert "where vehicle 'v1' is now" in str(error)

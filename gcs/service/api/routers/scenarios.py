@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 from collections.abc import Callable, Coroutine
 from typing import Any
@@ -39,6 +40,7 @@ from gcs.service.api.schemas import (
 )
 from gcs.service.states import OPEN, StateConflict
 from gcs.service.storage.tables import ScenarioRow
+from gcs.service.vehicle_starts import place_vehicle_starts
 from planner.scenario import Scenario
 
 
@@ -62,6 +64,9 @@ class GeographicRoute(APIRoute):
             body = await request.body()
             try:
                 document = await run_in_threadpool(from_kml, body) if kml else json.loads(body)
+                registry = request.app.state.services.registry
+                now = asyncio.get_running_loop().time()
+                document = place_vehicle_starts(document, registry, now)
                 derived = await run_in_threadpool(derive_file, document)
             except UnicodeDecodeError:
                 raise RequestValidationError(
@@ -154,7 +159,8 @@ async def create_scenario(
 
     Or a geographic scenario (`Content-Type: application/geo+json`): a GeoJSON
     FeatureCollection with the operating area, no-fly zones, starts and goals in WGS84
-    and `cell_size_m` (docs/planner.md); or the same drawn in KML
+    and `cell_size_m` (docs/planner.md), a start with `"vehicle": "<id>"` and a null
+    geometry placed where that registered vehicle is now; or the same drawn in KML
     (`application/vnd.google-earth.kml+xml`, placemarks named or tagged by role), stored
     as its GeoJSON. Its grid scenario is derived, stored with the
     file beside it and returned; a file that describes nothing plannable (a ring that
