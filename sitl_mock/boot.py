@@ -108,8 +108,10 @@ class BootSequence:
         gps = GPS if flight.position_known(now) else 0
         ahrs = AHRS if flight.uptime(now) >= flight.timeline.ahrs_s else 0
         prearm = PREARM if flight.armed or not flight.arming_failures(now) else 0
+        fence = S.MAV_SYS_STATUS_GEOFENCE if flight.fence_enabled else 0  # AC_Fence::sys_status
+        breached = S.MAV_SYS_STATUS_GEOFENCE if flight.fence.breaches else 0
         return Sensors(
             ARDUCOPTER_PRESENT | gps,
-            ARDUCOPTER_ENABLED | gps | ahrs,
-            ARDUCOPTER_HEALTHY | gps | ahrs | prearm,
+            ARDUCOPTER_ENABLED | gps | ahrs | fence,
+            (ARDUCOPTER_HEALTHY | gps | ahrs | prearm) & ~breached,
         )

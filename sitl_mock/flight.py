@@ -7,7 +7,9 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
+from . import fence
 from .codec import mavlink
+from .fence import FenceMonitor, Zones
 from .flavour import Flavour
 from .kinematics import Body, NavLimits
 from .manoeuvres import TAKEOFF, Climb, Hold, Land, Manoeuvre, Stop, return_home
@@ -57,10 +59,15 @@ class FlightController:
         self.home = home
         self.timeline = timeline
         self._say = say
+        self._to_local = to_local
+        self.fence = FenceMonitor()
+        self._zones = Zones()
+        self._zones_version = -1
         self._boot_time = 0.0
         self._cruise_override: float | None = None
         placer = ItemPlacer(to_local, lambda: self.home.alt_amsl)
         implicit_takeoff = None if flavour.needs_mission_start else self._px4_takeoff_alt()
+        self.store = store
         self.runner = MissionRunner(
             store,
             body,
@@ -175,6 +182,8 @@ class FlightController:
             failures += [text for text in extra if text not in failures]
         elif not force:
             failures = arducopter_arming_failures(self.timeline, uptime, needs_position)
+        if not failures and not force and self.fence.breaches:
+            failures = [f"Vehicle breaching {fence.fence_names(self.fence.breaches)}"]
         if not failures and not force and self.mode in NOT_ARMABLE:
             failures = [f"{ARDUCOPTER_NAMES[self.mode]} mode not armable"]
         return [f"Arm: {text}" for text in failures]
@@ -303,17 +312,79 @@ class FlightController:
 
     def update(self, now: float) -> None:
         self.body.set_active(self.armed)
+        if self.armed:
+            if self.mode == FlightMode.AUTO:
+                self.runner.update(now)
+            elif self._manoeuvre is not None and self._manoeuvre.update(self.body, now):
+                self._manoeuvre_done(now)
+            self._watch_ground(now)
+        if self.flavour.needs_mission_start:
+            self._check_fence(now)
+
+    # -- the geofence (ArduCopter) ------------------------------------------------------------
+
+    @property
+    def fence_enabled(self) -> bool:
+        return "FENCE_ENABLE" in self.params and self.params.get("FENCE_ENABLE") == 1
+
+    def fence_types(self) -> int:
+        """The fences in force: FENCE_TYPE's bits, polygons only when some are stored."""
+        if not self.fence_enabled:
+            return 0
+        types = int(self.params.get("FENCE_TYPE")) & (fence.ALT_MAX | fence.CIRCLE | fence.POLYGON)
+        if self.zones().empty:
+            types &= ~fence.POLYGON
+        return types
+
+    def zones(self) -> Zones:
+        if self._zones_version != self.store.fence_version:
+            self._zones = Zones.of(self.store.items(mavlink.MAV_MISSION_TYPE_FENCE), self._to_local)
+            self._zones_version = self.store.fence_version
+        return self._zones
+
+    def _check_fence(self, now: float) -> None:
+        """Copter::fence_check: checked armed or not; acted on only when armed."""
+        had = self.fence.breaches
+        east, north, up = self.body.position
+        breach = self.fence.check(
+            self.fence_types(),
+            self.zones(),
+            (float(east), float(north), float(up)),
+            (self.home.east, self.home.north),
+            (self.params.get("FENCE_ALT_MAX"), self.params.get("FENCE_RADIUS")),
+            int(self.uptime(now) * 1000),
+        )
+        if breach is None:
+            if had and not self.fence.breaches and self._airborne:
+                self._say(mavlink.MAV_SEVERITY_NOTICE, "Fence breach cleared")
+            return
         if not self.armed:
             return
-        if self.mode == FlightMode.AUTO:
-            self.runner.update(now)
-        elif self._manoeuvre is not None and self._manoeuvre.update(self.body, now):
-            self._manoeuvre_done(now)
-        self._watch_ground(now)
+        if self._airborne:
+            self._say(mavlink.MAV_SEVERITY_NOTICE, f"{fence.fence_names(breach.new)} breached")
+        action = int(self.params.get("FENCE_ACTION"))
+        if action == 0:
+            return
+        if not self._airborne:
+            self._disarm()
+            return
+        if breach.distance_m > fence.GIVE_UP_DISTANCE_M:
+            self._enter(FlightMode.LAND, now)
+            return
+        tries = {
+            2: [FlightMode.LAND],
+            3: [FlightMode.RTL, FlightMode.LAND],  # SmartRTL is not simulated
+            4: [FlightMode.BRAKE, FlightMode.LAND],
+            5: [FlightMode.LAND],  # SmartRTL, else LAND
+        }.get(action, [FlightMode.RTL, FlightMode.LAND])
+        for mode in tries:
+            if self.set_mode(mode, now) == ACCEPTED:
+                return
 
     def reboot(self, now: float) -> None:
         """Power-cycle: disarmed on the ground at home, estimate not ready again."""
         self._reset_state()
+        self.fence.reset()
         self._boot_time = now
         self._cruise_override = None
         self.body.place(self.home.east, self.home.north, 0.0)
@@ -368,7 +439,7 @@ class FlightController:
             self._run(
                 return_home(
                     self.body,
-                    (self.home.east, self.home.north),
+                    self._return_point(),
                     self.flavour.rtl_alt_m(self.params),
                     self.limits(),
                 ),
@@ -380,6 +451,18 @@ class FlightController:
             self._run(Stop(brake=True), now)
         else:
             self._run(Hold(), now)
+
+    def _return_point(self) -> tuple[float, float]:
+        """ArduCopter's RTL flies to the nearest rally point, or home if that is nearer
+        (RALLY_INCL_HOME 1); without rally points, home."""
+        east, north, _ = self.body.position
+        best = (self.home.east, self.home.north)
+        if self.flavour.needs_mission_start:
+            for item in self.store.items(mavlink.MAV_MISSION_TYPE_RALLY):
+                point = self._to_local(item.lat, item.lon)
+                if math.dist(point, (east, north)) < math.dist(best, (east, north)):
+                    best = point
+        return best
 
     def _start_auto(self, now: float) -> None:
         self._idle_since = None

@@ -14,6 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar, Protocol
 
+from . import fence
 from .codec import Message, Sender, mavlink
 from .flavour import Flavour
 from .mission_item import NAV_COMMANDS, SUPPORTED_FRAMES, MissionItem, same_item
@@ -95,6 +96,8 @@ class MissionStore:
         self._out = out
         self._home_item = home_item
         self._lists: dict[int, list[MissionItem]] = {MISSION: [], FENCE: [], RALLY: []}
+        self.fence_version = 0
+        """Counts the fences stored: the flight controller re-reads the zones when it changes."""
         self._upload: _Upload | None = None
         self._completed: _Completed | None = None
         self.current = self.first_item
@@ -165,7 +168,8 @@ class MissionStore:
         if now - upload.last_heard >= self.flavour.upload_timeout_s:
             self._upload = None
             self._ack(upload.sender, upload.mission_type, mavlink.MAV_MISSION_OPERATION_CANCELLED)
-            self._out.say(mavlink.MAV_SEVERITY_WARNING, "Mission upload timeout")
+            name = {FENCE: "Fence", RALLY: "Rally"}.get(upload.mission_type, "Mission")
+            self._out.say(mavlink.MAV_SEVERITY_WARNING, f"{name} upload timeout")
         elif now - upload.last_request >= self.flavour.rerequest_s:
             self._request(upload, now)
 
@@ -238,6 +242,10 @@ class MissionStore:
         """The MAV_MISSION_RESULT that rejects this item, or None."""
         if upload.mission_type == MISSION and item.seq < self.first_item:
             return None  # ArduPilot overwrites item 0 with home
+        if self._ardupilot and upload.mission_type == FENCE:
+            return fence.fence_item_refusal(item)
+        if self._ardupilot and upload.mission_type == RALLY:
+            return fence.rally_item_refusal(item)
         if item.frame not in SUPPORTED_FRAMES:
             return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
         if item.command not in SUPPORTED_COMMANDS[upload.mission_type]:
@@ -251,15 +259,31 @@ class MissionStore:
         if self.reject_at == "last_item":
             self._ack(upload.sender, upload.mission_type, mavlink.MAV_MISSION_ERROR)
             return
+        if (
+            self._ardupilot
+            and upload.mission_type == FENCE
+            and not fence.fence_list_valid(upload.staged)
+        ):
+            self._ack(upload.sender, upload.mission_type, mavlink.MAV_MISSION_ERROR)
+            return  # AC_PolyFence_loader::write_fence refuses it; the old fence stays
         self._replace(upload.mission_type, upload.staged)
         self._completed = _Completed(upload.sender, upload.mission_type, upload.staged[-1])
         self._ack(upload.sender, upload.mission_type, mavlink.MAV_MISSION_ACCEPTED)
         if upload.mission_type == MISSION:
             self._out.say(mavlink.MAV_SEVERITY_INFO, "Flight plan received")
 
+    @property
+    def _ardupilot(self) -> bool:
+        return self.flavour.home_is_item_zero
+
     def _replace(self, mission_type: int, items: list[MissionItem]) -> None:
         if mission_type == MISSION:
             items = [self.flavour.store_item(item) for item in items]
+        elif self._ardupilot:
+            keep = fence.stored_fence_item if mission_type == FENCE else fence.stored_rally_item
+            items = [keep(item) for item in items]
+        if mission_type == FENCE:
+            self.fence_version += 1
         if mission_type == MISSION and items and self.flavour.home_is_item_zero:
             items = [self._home_item(), *items[1:]]
         self._lists[mission_type] = list(items)

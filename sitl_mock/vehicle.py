@@ -237,6 +237,19 @@ class Vehicle:
             if msg_id in messages.NEEDS_HOME and not state.home_set:
                 continue
             self.send(messages.BUILDERS[msg_id](state, self.flavour))
+            if msg_id == mavlink.MAVLINK_MSG_ID_SYS_STATUS and self.flight.fence_enabled:
+                self.send(self._fence_status())  # ArduPilot's EXTENDED_STATUS stream has it
+
+    def _fence_status(self) -> Message:
+        """FENCE_STATUS as ArduCopter sends it while its fence is enabled."""
+        monitor = self.flight.fence
+        return mavlink.MAVLink_fence_status_message(
+            int(monitor.breaches != 0),
+            monitor.breach_count,
+            monitor.breach_type,
+            monitor.breach_time_ms,
+            mavlink.FENCE_MITIGATE_UNKNOWN,
+        )
 
     # -- state ----------------------------------------------------------------------------
 

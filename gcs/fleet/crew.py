@@ -43,6 +43,7 @@ class FleetSettings:
     commands: CommandPolicy = field(default_factory=CommandPolicy)
     readiness: ReadinessPolicy = field(default_factory=ReadinessPolicy)
     start_tolerance_m: float = 3.0  # how far from its start a vehicle may be when it arms
+    fence_action: int = 1  # ArduCopter's FENCE_ACTION for a flight with a geofence: RTL
     tick_s: float = 0.05  # seconds between looks at the fleet
     progress_every_s: float = 0.25  # seconds between Progress events
 

@@ -21,6 +21,7 @@ from gcs.fleet.crew import Crew, Fallback, FleetSettings
 from gcs.fleet.events import EventBus, FleetEvent, Listener, Uploaded, VehicleFailed
 from gcs.fleet.follower import FlightReport, Follower
 from gcs.fleet.gatekeeper import GateCommander, Gatekeeper
+from gcs.fleet.geofence import GeoFence, enable_fence, upload_fence
 from gcs.fleet.member import Member
 from gcs.fleet.outcome import VehicleOutcome
 from gcs.fleet.path_progress import PathProgress
@@ -33,6 +34,7 @@ from gcs.mavlink.mission_item import Autopilot, Mission
 from gcs.mavlink.mission_protocol import MissionClient, UploadResult
 from gcs.mavlink.parameters import set_in_units
 from gcs.mission.build import takeoff_index
+from gcs.mission.fence import FencePlan
 from gcs.mission.flight_plan import FlightPlan, continued
 from planner.trajectory import Trajectory
 
@@ -47,11 +49,15 @@ class Fleet:
         links: dict[str, VehicleLink],
         flight: FlightPlan,
         settings: FleetSettings | None = None,
+        fence: FencePlan | None = None,
     ) -> None:
+        """`fence`: a geographic scenario's fence and rally points, set up on every
+        vehicle with its mission (`geofence.py`), with `settings.fence_action`."""
         missions = flight.missions
         if set(links) != set(missions):
             raise ValueError(f"links {sorted(links)} and missions {sorted(missions)} differ")
         settings = settings or FleetSettings()
+        self.geofence = None if fence is None else GeoFence(fence, settings.fence_action)
         members = {uav: _member(uav, links[uav], flight, settings) for uav in links}
         gatekeeper = Gatekeeper(flight.order, flight.limits, settings.stopping)
         bus = EventBus()
@@ -103,8 +109,20 @@ class Fleet:
 
     async def upload(self) -> dict[str, VehicleOutcome[UploadResult]]:
         """Every mission at once; each verified by reading it back, and on ArduPilot with
-        the parameters that carry what its stored items cannot (the acceptance radius)."""
-        outcomes = await self.crew.each(_upload, "upload")
+        the parameters that carry what its stored items cannot (the acceptance radius).
+        With a geofence, each vehicle's fence and rally points go first and the fence is
+        enabled last (a vehicle whose fence fails gets nothing else)."""
+        geofence = self.geofence
+
+        async def upload_one(member: Member) -> UploadResult:
+            if geofence is not None:
+                await upload_fence(member.client, geofence, member.altitude_m)
+            result = await _upload(member)
+            if geofence is not None:
+                await enable_fence(member.link, geofence)
+            return result
+
+        outcomes = await self.crew.each(upload_one, "upload")
         for uav, outcome in outcomes.items():
             self.crew.bus.publish(Uploaded(uav, outcome.ok, outcome.detail))
         return outcomes

@@ -16,6 +16,7 @@ retried; a link loss or reboot ends the exchange at once with its own error.
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,6 +39,13 @@ from gcs.mavlink.subscription import Subscription
 from gcs.mavlink.vehicle_state import MAV_STATE_BOOT
 
 MISSION_TYPE_MISSION = mavlink2.MAV_MISSION_TYPE_MISSION
+MISSION_TYPE_FENCE = mavlink2.MAV_MISSION_TYPE_FENCE
+MISSION_TYPE_RALLY = mavlink2.MAV_MISSION_TYPE_RALLY
+TYPE_NAMES = {
+    MISSION_TYPE_MISSION: "mission",
+    MISSION_TYPE_FENCE: "fence",
+    MISSION_TYPE_RALLY: "rally",
+}
 REQUESTS = ("MISSION_REQUEST", "MISSION_REQUEST_INT")  # real ArduPilot asks with 40
 BOOT_WAITS = 3  # NO_SPACE answers taken for "still booting" before one is believed
 
@@ -95,11 +103,44 @@ class MissionClient:
         started = loop.time()
         async with self._busy:
             await self._until_booted()
-            resends = await self._upload_with_retry(mission.items)
+            resends = await self._upload_with_retry(mission.items, MISSION_TYPE_MISSION)
             if verify and mission.items:
                 self._verify(mission, await self._download())
         seconds = loop.time() - started
         return UploadResult(self.link.sysid, len(mission), seconds, resends, verify)
+
+    async def upload_list(
+        self,
+        items: tuple[MissionItem, ...],
+        mission_type: int,
+        same: Callable[[MissionItem, MissionItem], bool],
+    ) -> UploadResult:
+        """Write a FENCE or RALLY list, then read it back and compare each item with
+        `same(sent, read)` (what the autopilot keeps of it); MissionMismatchError names
+        the first that differs. An interrupted upload leaves the vehicle's previous list
+        (ArduPilot stages it), as for a mission."""
+        if mission_type == MISSION_TYPE_MISSION:
+            raise ValueError("a mission goes through upload(), which knows ArduPilot's home")
+        loop = asyncio.get_running_loop()
+        started = loop.time()
+        async with self._busy:
+            await self._until_booted()
+            resends = await self._upload_with_retry(items, mission_type)
+            read_back = await self._download(mission_type)
+        name = TYPE_NAMES.get(mission_type, f"type {mission_type}")
+        if len(read_back) != len(items):
+            raise MissionMismatchError(
+                self.link.sysid,
+                min(len(read_back), len(items)),
+                f"{name}: vehicle holds {len(read_back)} items, {len(items)} were sent",
+            )
+        for seq, (sent, read) in enumerate(zip(items, read_back, strict=True)):
+            if not same(sent, read):
+                raise MissionMismatchError(
+                    self.link.sysid, seq, f"{name}: sent {sent}, vehicle holds {read}"
+                )
+        seconds = loop.time() - started
+        return UploadResult(self.link.sysid, len(items), seconds, resends, True)
 
     async def _until_booted(self) -> None:
         """A booting ArduPilot refuses every MISSION_COUNT with NO_SPACE (its mission
@@ -114,11 +155,11 @@ class MissionClient:
                 f"vehicle {link.sysid} was still booting after {bound:.0f} s: no upload yet"
             ) from None
 
-    async def _upload_with_retry(self, items: tuple[MissionItem, ...]) -> int:
+    async def _upload_with_retry(self, items: tuple[MissionItem, ...], mission_type: int) -> int:
         attempt, boot_waits = 1, 0
         while True:
             try:
-                return await self._upload_once(items)
+                return await self._upload_once(items, mission_type)
             except NoSpaceError:
                 boot_waits += 1
                 if not self.link.state.booting or boot_waits > BOOT_WAITS:
@@ -131,16 +172,23 @@ class MissionClient:
                 self.link.ensure_up()  # a vehicle gone is not waited for again
                 attempt += 1
 
-    async def _upload_once(self, items: tuple[MissionItem, ...]) -> int:
+    async def _upload_once(self, items: tuple[MissionItem, ...], mission_type: int) -> int:
         link, n = self.link, len(items)
-        count = link.codec.mission_count_encode(link.sysid, link.compid, n, MISSION_TYPE_MISSION)
+        count = link.codec.mission_count_encode(link.sysid, link.compid, n, mission_type)
         with link.subscribe((*REQUESTS, "MISSION_ACK")) as sub:
             link.ensure_up()
-            first = await self._opening(sub, count, "upload", _opens_upload(n), idempotent=False)
-            return await self._serve_items(sub, items, first)
+            first = await self._opening(
+                sub,
+                count,
+                _operation("upload", mission_type),
+                _opens_upload(n, mission_type),
+                idempotent=False,
+                mission_type=mission_type,
+            )
+            return await self._serve_items(sub, items, first, mission_type)
 
     async def _serve_items(
-        self, sub: Subscription, items: tuple[MissionItem, ...], msg: Any
+        self, sub: Subscription, items: tuple[MissionItem, ...], msg: Any, mission_type: int
     ) -> int:
         """Answer requests until the final ACK; returns how many nudges it took."""
         highest, last_sent, nudges = -1, None, 0
@@ -150,13 +198,13 @@ class MissionClient:
                 if stall.exceeded():
                     raise self._upload_stalled(highest, len(items))
                 if last_sent is not None:
-                    self._send_item(items, last_sent)
+                    self._send_item(items, last_sent, mission_type)
                     nudges += 1
             elif msg.get_type() == "MISSION_ACK":
-                if self._upload_finished(msg, items, highest, last_sent):
+                if self._upload_finished(msg, items, highest, last_sent, mission_type):
                     return nudges
-            elif 0 <= msg.seq < len(items) and _is_mission(msg):
-                self._send_item(items, msg.seq)  # duplicates are answered too
+            elif 0 <= msg.seq < len(items) and _is_type(msg, mission_type):
+                self._send_item(items, msg.seq, mission_type)  # duplicates are answered too
                 last_sent = msg.seq
                 if msg.seq > highest:
                     highest = msg.seq
@@ -164,18 +212,25 @@ class MissionClient:
             msg = await _next_or_none(sub, self.policy.item_timeout_s)
 
     def _upload_finished(
-        self, ack: Any, items: tuple[MissionItem, ...], highest: int, last_sent: int | None
+        self,
+        ack: Any,
+        items: tuple[MissionItem, ...],
+        highest: int,
+        last_sent: int | None,
+        mission_type: int,
     ) -> bool:
-        if not _is_mission(ack):
+        if not _is_type(ack, mission_type):
             return False
         if ack.type == MissionResult.ACCEPTED:
             # An ACCEPTED before the last item was asked for is a stale one.
             return len(items) == 0 or highest == len(items) - 1
         if ack.type == MissionResult.INVALID_SEQUENCE:
             return False  # failure mode 3: the vehicle re-requests what it wants
-        raise mission_error(self.link.sysid, ack.type, "upload", last_sent)
+        raise mission_error(
+            self.link.sysid, ack.type, _operation("upload", mission_type), last_sent
+        )
 
-    def _send_item(self, items: tuple[MissionItem, ...], seq: int) -> None:
+    def _send_item(self, items: tuple[MissionItem, ...], seq: int, mission_type: int) -> None:
         link, item = self.link, items[seq]
         link.send(
             link.codec.mission_item_int_encode(
@@ -190,7 +245,7 @@ class MissionClient:
                 item.x,
                 item.y,
                 item.z,
-                MISSION_TYPE_MISSION,
+                mission_type,
             )
         )
 
@@ -225,41 +280,52 @@ class MissionClient:
 
     # --- download ----------------------------------------------------------------------
 
-    async def download(self) -> tuple[MissionItem, ...]:
-        """The mission the vehicle holds (ArduPilot: seq 0 is its current home)."""
+    async def download(self, mission_type: int = MISSION_TYPE_MISSION) -> tuple[MissionItem, ...]:
+        """The mission (or fence, or rally points) the vehicle holds (ArduPilot's
+        mission: seq 0 is its current home)."""
         async with self._busy:
-            return await self._download()
+            return await self._download(mission_type)
 
-    async def _download(self) -> tuple[MissionItem, ...]:
+    async def _download(self, mission_type: int = MISSION_TYPE_MISSION) -> tuple[MissionItem, ...]:
         link = self.link
-        request = link.codec.mission_request_list_encode(
-            link.sysid, link.compid, MISSION_TYPE_MISSION
-        )
+        request = link.codec.mission_request_list_encode(link.sysid, link.compid, mission_type)
         types = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK")
         with link.subscribe(types) as sub:
             link.ensure_up()
-            count_msg = await self._opening(sub, request, "download", _is_count)
-            items = [await self._fetch_item(sub, seq) for seq in range(count_msg.count)]
+            count_msg = await self._opening(
+                sub,
+                request,
+                _operation("download", mission_type),
+                lambda m: m.get_type() == "MISSION_COUNT" and _is_type(m, mission_type),
+                mission_type=mission_type,
+            )
+            items = [
+                await self._fetch_item(sub, seq, mission_type) for seq in range(count_msg.count)
+            ]
         link.send(
             link.codec.mission_ack_encode(
-                link.sysid, link.compid, MissionResult.ACCEPTED, MISSION_TYPE_MISSION
+                link.sysid, link.compid, MissionResult.ACCEPTED, mission_type
             )
         )
         return tuple(items)
 
-    async def _fetch_item(self, sub: Subscription, seq: int) -> MissionItem:
+    async def _fetch_item(self, sub: Subscription, seq: int, mission_type: int) -> MissionItem:
         link = self.link
-        request = link.codec.mission_request_int_encode(
-            link.sysid, link.compid, seq, MISSION_TYPE_MISSION
-        )
+        request = link.codec.mission_request_int_encode(link.sysid, link.compid, seq, mission_type)
         stall = _Stall(self.policy.stall_limit_s)
         while not stall.exceeded():
             link.send(request)
             msg = await _next_or_none(sub, self.policy.item_timeout_s)
             while msg is not None:
-                if _is_refusal(msg, definitive_only=True):
-                    raise mission_error(link.sysid, msg.type, "download", seq)
-                if msg.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM") and msg.seq == seq:
+                if _is_refusal(msg, mission_type, definitive_only=True):
+                    raise mission_error(
+                        link.sysid, msg.type, _operation("download", mission_type), seq
+                    )
+                if (
+                    msg.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM")
+                    and msg.seq == seq
+                    and _is_type(msg, mission_type)
+                ):
                     return _item_from(msg)
                 msg = await _next_or_none(sub, self.policy.item_timeout_s)
         raise MissionTimeoutError(
@@ -275,7 +341,9 @@ class MissionClient:
         async with self._busy:
             with link.subscribe(["MISSION_ACK"]) as sub:
                 link.ensure_up()
-                ack = await self._opening(sub, msg, "clear", _is_mission)
+                ack = await self._opening(
+                    sub, msg, "clear", lambda m: _is_type(m, MISSION_TYPE_MISSION)
+                )
         if ack.type != MissionResult.ACCEPTED:
             raise mission_error(link.sysid, ack.type, "clear")
 
@@ -298,6 +366,7 @@ class MissionClient:
         accept: Any,
         *,
         idempotent: bool = True,
+        mission_type: int = MISSION_TYPE_MISSION,
     ) -> Any:
         """Send `msg` and return the first answer `accept`s, re-sending it while none comes.
 
@@ -317,7 +386,7 @@ class MissionClient:
             self.link.send(msg)
             deadline = loop.time() + period
             while (answer := await _next_or_none(sub, deadline - loop.time())) is not None:
-                if _is_refusal(answer, definitive_only=idempotent):
+                if _is_refusal(answer, mission_type, definitive_only=idempotent):
                     raise mission_error(self.link.sysid, answer.type, operation)
                 if accept(answer):
                     return answer
@@ -348,30 +417,37 @@ async def _next_or_none(sub: Subscription, timeout: float) -> Any:
         return None
 
 
-def _is_mission(msg: Any) -> bool:
-    return getattr(msg, "mission_type", MISSION_TYPE_MISSION) == MISSION_TYPE_MISSION
+def _is_type(msg: Any, mission_type: int) -> bool:
+    return getattr(msg, "mission_type", MISSION_TYPE_MISSION) == mission_type
 
 
-def _opens_upload(n: int) -> Any:
-    """What answers MISSION_COUNT: a request, or for an empty mission the ACK itself."""
+def _operation(what: str, mission_type: int) -> str:
+    """ "upload" for a mission, "fence upload" for a fence..."""
+    if mission_type == MISSION_TYPE_MISSION:
+        return what
+    return f"{TYPE_NAMES.get(mission_type, f'type {mission_type}')} {what}"
+
+
+def _opens_upload(n: int, mission_type: int = MISSION_TYPE_MISSION) -> Any:
+    """What answers MISSION_COUNT: a request, or for an empty list the ACK itself."""
 
     def accept(msg: Any) -> bool:
+        if not _is_type(msg, mission_type):
+            return False
         return msg.get_type() in REQUESTS or (n == 0 and msg.get_type() == "MISSION_ACK")
 
     return accept
 
 
-def _is_refusal(msg: Any, definitive_only: bool = False) -> bool:
+def _is_refusal(
+    msg: Any, mission_type: int = MISSION_TYPE_MISSION, definitive_only: bool = False
+) -> bool:
     """A MISSION_ACK that ends the exchange (INVALID_SEQUENCE does not: failure mode 3)."""
-    if msg.get_type() != "MISSION_ACK" or not _is_mission(msg):
+    if msg.get_type() != "MISSION_ACK" or not _is_type(msg, mission_type):
         return False
     if msg.type in (MissionResult.ACCEPTED, MissionResult.INVALID_SEQUENCE):
         return False
     return not definitive_only or mission_error(0, msg.type, "").definitive
-
-
-def _is_count(msg: Any) -> bool:
-    return msg.get_type() == "MISSION_COUNT" and _is_mission(msg)
 
 
 def _item_from(msg: Any) -> MissionItem:
