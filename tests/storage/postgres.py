@@ -17,7 +17,7 @@ import subprocess
 import tempfile
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -48,8 +48,9 @@ def binaries() -> Path | None:
 class PostgresServer:
     """One cluster; `database()` makes an empty database of its own for each test."""
 
-    def __init__(self, bindir: Path) -> None:
+    def __init__(self, bindir: Path, settings: Sequence[str] = FAST_SETTINGS) -> None:
         self.bindir = bindir
+        self.settings = tuple(settings)  # () for PostgreSQL's own, durable defaults
         self.root = Path(tempfile.mkdtemp(prefix="mvo-pg-"))  # short: socket paths are
         self.data = self.root / "data"
         self._as: dict[str, Any] = {}
@@ -69,7 +70,7 @@ class PostgresServer:
             capture_output=True,
             **self._as,
         )
-        settings = [f"unix_socket_directories={self.root}", "listen_addresses=", *FAST_SETTINGS]
+        settings = [f"unix_socket_directories={self.root}", "listen_addresses=", *self.settings]
         self._log = (self.root / "server.log").open("wb")
         self.process = subprocess.Popen(
             [self.bindir / "postgres", "-D", self.data]
