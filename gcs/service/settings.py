@@ -53,6 +53,14 @@ class Settings(BaseSettings):
         default=120.0, gt=0, description="cap on the time budget of one plan request"
     )
     live_rate_hz: float = Field(default=10.0, gt=0, le=50)
+    fence_action: int = Field(
+        default=1,
+        ge=0,
+        le=5,
+        description="ArduCopter's FENCE_ACTION set on the vehicles of a flight on a geographic "
+        "scenario: 0 report only, 1 RTL or land, 2 land, 3 SmartRTL or RTL or land, 4 brake "
+        "or land, 5 SmartRTL or land",
+    )
     event_memory_rows: int = Field(
         default=10_000,
         ge=1,

@@ -14,6 +14,7 @@ from typing import Annotated, Any
 from fastapi import Depends
 from starlette.requests import HTTPConnection
 
+from gcs.fleet.crew import FleetSettings
 from gcs.mavlink.transport import TransportOpener, open_transport
 from gcs.service.api.auth import require_token
 from gcs.service.api.live_sockets import LiveSockets
@@ -83,6 +84,7 @@ class Services:
             vehicles=vehicles,
             registry=registry,
             metrics=metrics,
+            fleet_settings=FleetSettings(fence_action=settings.fence_action),
         )
         operator = OperatorCommands(flights, registry)
         leases = LeaseRepository(db, holder_for(settings), settings.lease_s)

@@ -26,8 +26,10 @@ from gcs.fleet.vehicle_limits import read_limits
 from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot
+from gcs.mission.fence import FencePlan, fence_of
 from gcs.mission.files import plan_document
 from gcs.mission.flight_plan import FlightPlan, flight_plan
+from gcs.mission.geographic import load_geographic
 from gcs.service.flights.active import ActiveFlight, VehicleAnswer, event_json
 from gcs.service.flights.book import FlightBook
 from gcs.service.flights.live_queue import LiveQueue
@@ -128,6 +130,7 @@ class FlightService:
             row = await self.book.row(flight_id)
             FlightState(row.state).check(F.UPLOADING, flight_id)
             plan, scenario = await self._flyable(row)
+            fence = await self._fence_of(row)
             await self.attach_vehicles(row.bindings.values())
             links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
             flight = await _flight_for(plan, scenario, links, row.options)
@@ -137,7 +140,7 @@ class FlightService:
                 _refuse_airborne(row, links)
                 await self.claim_control(flight_id)
                 await self.book.transition(flight_id, F.UPLOADING)
-            active = self._activate(row, links, flight)
+            active = self._activate(row, links, flight, fence)
             try:
                 outcomes = await slot.run(self._upload(active))
             except Preempted:
@@ -151,13 +154,24 @@ class FlightService:
         _require_origin(scenario, plan_row.scenario_id, f"flight {row.id}")
         return Plan(**plan_row.body), scenario
 
+    async def _fence_of(self, row: FlightRow) -> FencePlan | None:
+        """A geographic scenario's fence and rally points (uploaded with the missions);
+        None for a grid scenario, whose flights upload no fence."""
+        plan_row = await self.plans.get(row.plan_id)
+        geographic = (await self.scenarios.get(plan_row.scenario_id)).geographic
+        return None if geographic is None else fence_of(load_geographic(geographic))
+
     def _activate(
-        self, row: FlightRow, links: dict[str, VehicleLink], flight: FlightPlan
+        self,
+        row: FlightRow,
+        links: dict[str, VehicleLink],
+        flight: FlightPlan,
+        fence: FencePlan | None = None,
     ) -> ActiveFlight:
         old = self.book.active.pop(row.id, None)
         if old is not None:
             old.fleet.close()
-        fleet = Fleet(links, flight, settings=self.fleet_settings)
+        fleet = Fleet(links, flight, settings=self.fleet_settings, fence=fence)
         active = ActiveFlight(
             row.id, fleet, flight.scenario, flight.plan, flight.missions, dict(row.bindings),
             dict(row.options), flight.factor,
