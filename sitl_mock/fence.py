@@ -7,8 +7,9 @@ and a circle's radius, and gives them back in frame 0 with z 0
 (`MissionItemProtocol_Fence::get_item_as_mission_item`); a list whose polygons do not
 add up (a vertex count that changes within a polygon, or fewer than 3 vertices) is
 refused whole with MAV_MISSION_ERROR when the last item arrives, the previous fence
-kept. Rally points (the RALLY mission type) are taken in frame 3 or 6 only, kept with a
-whole-metre altitude, and given back in frame 3 (`MissionItemProtocol_Rally`).
+kept. Rally points (the RALLY mission type) are taken in global frames (absolute, relative or
+terrain), kept with a whole-metre altitude and its frame, and given back in frame 0, 3
+or 10 (`MissionItemProtocol_Rally`).
 
 Enforcement (`FenceMonitor`, checked every step; ArduCopter checks at 25 Hz), with
 `FENCE_ENABLE` 1 and the `FENCE_TYPE` bits: 1 the maximum altitude (`FENCE_ALT_MAX`
@@ -48,9 +49,15 @@ FENCE_FRAMES = frozenset(
         mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT,
     }
 )
-RALLY_FRAMES = frozenset(
-    {mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}
-)
+RALLY_FRAMES = {
+    mavlink.MAV_FRAME_GLOBAL: mavlink.MAV_FRAME_GLOBAL,
+    mavlink.MAV_FRAME_GLOBAL_INT: mavlink.MAV_FRAME_GLOBAL,
+    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT: mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT: mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+}
+"""A rally point's frame as taken and as given back (its altitude frame is kept)."""
 
 ALT_MAX, CIRCLE, POLYGON = 1, 2, 4
 """AC_FENCE_TYPE bits."""
@@ -121,10 +128,11 @@ def stored_fence_item(item: MissionItem) -> MissionItem:
 
 
 def stored_rally_item(item: MissionItem) -> MissionItem:
-    """Position and a whole-metre altitude (int16, cut towards zero), frame 3."""
+    """Position and a whole-metre altitude (int16, cut towards zero), in the frame of
+    its altitude (3 for 3 and 6)."""
     return MissionItem(
         seq=item.seq,
-        frame=mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        frame=RALLY_FRAMES[item.frame],
         command=mavlink.MAV_CMD_NAV_RALLY_POINT,
         x=item.x,
         y=item.y,

@@ -248,7 +248,7 @@ class Vehicle:
             monitor.breach_count,
             monitor.breach_type,
             monitor.breach_time_ms,
-            mavlink.FENCE_MITIGATE_UNKNOWN,
+            mavlink.FENCE_MITIGATE_NONE,  # no avoidance is simulated to limit anything
         )
 
     # -- state ----------------------------------------------------------------------------
