@@ -86,6 +86,9 @@ class VehicleRegistry:
         """Registered here (connected or trying to)."""
         return vehicle_id in self._entries
 
+    def known(self) -> set[str]:
+        return set(self._entries)
+
     async def remove(self, vehicle_id: str) -> None:
         entry = self._entries.pop(vehicle_id, None)
         if entry is not None:

@@ -18,7 +18,7 @@ from sqlalchemy import create_engine, func, select
 
 from gcs.service.storage.tables import JobRow, UploadRow
 from planner.cases import load_case
-from tests.e2e.flying import Flight, fleet_at_starts, wait_for
+from tests.e2e.flying import Flight, fleet_at_starts, online, wait_for
 from tests.storage.pair import pair, taken_over_by, wait_taken_over
 from tests.storage.postgres import PostgresServer
 
@@ -43,6 +43,9 @@ def test_the_survivor_takes_over_a_killed_services_flight(
     ):
         flight = Flight.make(on_a, sim, "case-6")
         flight.fly()  # uploaded and started by a: a controls it
+        wait_for(  # registered on a; b connects to them too, ready to take over
+            lambda: all(online(on_b, v) for v in flight.vehicle_ids), 30, "b's links"
+        )
 
         assert on_b.get(f"/flights/{flight.id}").json()["state"] == "flying"  # stored: anyone
         refused = on_b.post(f"/flights/{flight.id}/pause")

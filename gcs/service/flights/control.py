@@ -39,6 +39,7 @@ from gcs.service.vehicle_registry import VehicleRegistry
 
 log = logging.getLogger("mvo_gcs.control")
 F = FlightState
+MAX_VEHICLES = 10_000  # as many as the service connects to when it starts
 TAKEN_IN_THE_AIR = frozenset({F.UPLOADING, F.STARTING, F.FLYING, F.PAUSED})
 """States a dead service's follower kept; nobody follows them now: `interrupted`."""
 
@@ -108,6 +109,7 @@ class FlightControl:
         for flight_id in sorted(set(self.flights.book.active) - renewal.flights):
             await self._let_go(flight_id)
         await self.leases.interrupt_orphan_jobs()
+        await self.sync_vehicles()
         for row in await self.leases.orphans():
             await self.take_over(row)
 
@@ -193,6 +195,20 @@ class FlightControl:
                 continue
             signing = Signing.from_text(vehicle.signing_key) if vehicle.signing_key else None
             self.registry.add(vehicle.id, vehicle.connection, vehicle.sysid, signing)
+
+    async def sync_vehicles(self) -> None:
+        """Connect to the vehicles registered on other services too, and forget those
+        deleted there: every service is ready to take any flight over. Under the
+        registry's registration lock, so that no registration here is half seen."""
+        async with self.registry.registering:
+            stored = {row.id: row for row in await self.vehicles.page(limit=MAX_VEHICLES)}
+            known = self.registry.known()
+            for vehicle_id in sorted(stored.keys() - known):
+                row = stored[vehicle_id]
+                signing = Signing.from_text(row.signing_key) if row.signing_key else None
+                self.registry.add(row.id, row.connection, row.sysid, signing)
+            for vehicle_id in sorted(known - stored.keys()):
+                await self.registry.remove(vehicle_id)
 
     async def _let_go(self, flight_id: str) -> None:
         """Another service holds a flight this one ran (it was frozen longer than a
