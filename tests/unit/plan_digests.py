@@ -3,10 +3,12 @@
 Each plan is reduced to a digest (sha256 of its JSON without the wall-clock fields,
 trajectories and costs already rounded to 6 decimals by the plan model, plus the
 reasons its progress reports gave); `tests/unit/data/plan_digests.json` holds the
-digests recorded before the planner's flows were restructured, and
+digests recorded before the planner's flows were restructured (issue 24; the two
+budgeted flows were added after, from the code before, f99b66a's planner), and
 `tests/unit/test_plan_digests.py` plans everything again and compares. Every flow runs
-without a time budget (`time_budget_s=None`), so no clock decides anything: the same
-seed gives the same plan on any machine, under any load.
+without a time budget (`time_budget_s=None`) or with one that never runs out, so no
+clock decides anything: the same seed gives the same plan on any machine, under any
+load.
 
 Record again (only for an intended change of behaviour, said so in the commit):
 
@@ -48,6 +50,12 @@ FLOWS: dict[str, PlannerSettings] = {
     "anytime": BASE,
     "anytime-gwo": PlannerSettings(
         algorithm="gwo", population=10, iterations=20, time_budget_s=None, improve_rounds=2
+    ),
+    # A budget that never runs out: the budgeted code paths (the others' cost without
+    # sampled traffic, the runs' deadlines) taken, and still no clock decides anything.
+    "anytime-budget": PlannerSettings(population=10, iterations=20, time_budget_s=1e6),
+    "qos-probing-budget": PlannerSettings(
+        population=10, iterations=20, time_budget_s=1e6, patience=10, safe_start=False
     ),
 }
 
