@@ -108,7 +108,9 @@ class BootSequence:
         gps = GPS if flight.position_known(now) else 0
         ahrs = AHRS if flight.uptime(now) >= flight.timeline.ahrs_s else 0
         prearm = PREARM if flight.armed or not flight.arming_failures(now) else 0
-        fence = S.MAV_SYS_STATUS_GEOFENCE if flight.fence_enabled else 0  # AC_Fence::sys_status
+        # AC_Fence::sys_status_enabled: enabled, and an action other than report only
+        acting = flight.fence_enabled and flight.params.get("FENCE_ACTION") != 0
+        fence = S.MAV_SYS_STATUS_GEOFENCE if acting else 0
         breached = S.MAV_SYS_STATUS_GEOFENCE if flight.fence.breaches else 0
         return Sensors(
             ARDUCOPTER_PRESENT | gps,

@@ -25,6 +25,8 @@ DENIED = mavlink.MAV_RESULT_DENIED
 
 AIRBORNE_ABOVE_M = 0.5
 NOT_ARMABLE = frozenset({FlightMode.AUTO, FlightMode.RTL, FlightMode.LAND})
+RALLY_LIMIT_M = 300.0
+"""ArduCopter's RALLY_LIMIT_KM default: a nearest rally point further away is not used."""
 USER_TAKEOFF_MODES = frozenset({FlightMode.GUIDED, FlightMode.LOITER})
 """ArduCopter modes in which a NAV_TAKEOFF command is obeyed."""
 
@@ -453,16 +455,26 @@ class FlightController:
             self._run(Hold(), now)
 
     def _return_point(self) -> tuple[float, float]:
-        """ArduCopter's RTL flies to the nearest rally point, or home if that is nearer
-        (RALLY_INCL_HOME 1); without rally points, home."""
-        east, north, _ = self.body.position
-        best = (self.home.east, self.home.north)
-        if self.flavour.needs_mission_start:
-            for item in self.store.items(mavlink.MAV_MISSION_TYPE_RALLY):
-                point = self._to_local(item.lat, item.lon)
-                if math.dist(point, (east, north)) < math.dist(best, (east, north)):
-                    best = point
-        return best
+        """ArduCopter's RTL target (AP_Rally::calc_best_rally_or_home_location): the
+        nearest rally point inside the enabled fences, unless it is beyond RALLY_LIMIT_KM
+        (0.3) or home is nearer (RALLY_INCL_HOME 1); home without one."""
+        here = tuple(float(v) for v in self.body.position[:2])
+        home = (self.home.east, self.home.north)
+        if not self.flavour.needs_mission_start:
+            return home
+        types, zones = self.fence_types(), self.zones()
+        best: tuple[float, float] | None = None
+        for item in self.store.items(mavlink.MAV_MISSION_TYPE_RALLY):
+            point = self._to_local(item.lat, item.lon)
+            if types & fence.POLYGON and zones.breach_distance(*point) is not None:
+                continue  # AP_Rally_Copter::is_valid: not outside the fence
+            if types & fence.CIRCLE and math.dist(point, home) > self.params.get("FENCE_RADIUS"):
+                continue
+            if best is None or math.dist(point, here) < math.dist(best, here):
+                best = point
+        if best is None or math.dist(best, here) > RALLY_LIMIT_M:
+            return home
+        return best if math.dist(best, here) < math.dist(home, here) else home
 
     def _start_auto(self, now: float) -> None:
         self._idle_since = None

@@ -199,3 +199,16 @@ async def test_arming_is_refused_while_the_vehicle_breaches_the_fence(one) -> No
     await until(lambda: "breaching" in link.state.recent_text(0.0), 5, "the arming failure")
     assert "Arm: Vehicle breaching Polygon fence" in link.state.recent_text(0.0)
     assert not sim.state(1).armed
+
+
+async def test_rtl_ignores_a_rally_point_outside_the_fence(one) -> None:
+    """AP_Rally_Copter::is_valid: a rally point the fence excludes is not returned to."""
+    sim, link = one
+    outside = replace(FENCE, rally_points=(lat_lon(130, 0),))  # beyond the east edge
+    await set_up(link, action=1, fence=outside)
+    await breach(sim, link, 160.0, 0.0)
+    assert sim.state(1).mode == "RTL"
+    await until(lambda: not sim.state(1).armed, 300, "landing at home")
+    home = sim.to_local(*CMAC[:2])
+    here = sim.local_positions()[1]
+    assert math.hypot(here[0] - home[0], here[1] - home[1]) < 3.0
