@@ -1,5 +1,6 @@
 // The operator console: scenario -> plan -> flight, on one page, through the public API.
 import { ApiError, forgetToken, get, hasToken, post, token, wsUrl } from "./api.js";
+import { AreaEditor } from "./area.js";
 import { colourOf, FieldMap, positionAt } from "./field.js";
 
 const $ = (id) => document.getElementById(id);
@@ -16,6 +17,14 @@ const S = {
   vehicles: [], discovered: [], reportMode: false,
   playing: false, t: 0, tMax: 0,
 };
+const area = new AreaEditor(field, {
+  say: (...a) => say(...a), fail: (e) => fail(e), vehicles: () => S.vehicles,
+  stored: (data) => {
+    setScenario(data.scenario, data.id, true, data.geographic);
+    loadStoredList().catch(fail);
+    say(`area stored as ${data.id}: its grid is drawn; Plan when ready`);
+  },
+});
 // Measured in the page (performance.now() milliseconds); the browser test reads them.
 const timings = {};
 window.consoleTimings = timings;
@@ -128,7 +137,10 @@ function showErrors(container, detail) {
 
 // --- scenario --------------------------------------------------------------------------
 
-function setScenario(scenario, id, fit = true) {
+/** A scenario to edit and plan; `geographic` the file it was derived from, if any (its
+ * area, zones, starts and goals are then drawn over the grid and editable). */
+function setScenario(scenario, id, fit = true, geographic = null) {
+  if (geographic) area.load(geographic); else area.clear();
   S.scenario = structuredClone(scenario);
   S.scenarioId = id;
   S.dirty = false;
@@ -349,7 +361,7 @@ function showPlan(planOut) {
 function drawPlan() {
   if (!S.plan) return;
   const { plan } = S.plan;
-  field.setPlan(plan, order, S.scenario?.grid.cell_size_m ?? 10, radii(), S.replanned);
+  field.setPlan(plan, order, S.scenario?.grid.cell_size_m ?? 10, radii(), S.replanned, S.plan.trajectories_wgs84);
   if (S.scenario && !Array.isArray(S.scenario.non_uav_objects)) {
     field.planObjects(plan.non_uav_objects); // random ones: the plan says where they fell
   }
@@ -425,10 +437,25 @@ async function refreshVehicles() {
     for (const v of vehicles) {
       if (!flying.has(v.id)) updateVehicleRow(v.id, { vehicle_id: v.id, name: v.name, ...v.live });
     }
+    field.showParked(vehicles.filter((v) => !flying.has(v.id))
+      .map((v) => ({ id: v.id, name: v.name, lat: v.live.lat, lon: v.live.lon, online: v.live.online })));
+    fitOnVehicles();
+    area.vehiclesChanged();
     renderBindings(true);
   } catch (error) {
     say(`cannot read the vehicles: ${error.message}`, "error");
   }
+}
+
+/** Nothing loaded or drawn yet: the map shows the vehicles where they are (again when
+ * one more reports a position). */
+function fitOnVehicles() {
+  if (S.scenario || area.hasDrawing()) return;
+  const placed = S.vehicles.filter((v) => v.live?.lat != null && v.live?.lon != null);
+  const key = placed.map((v) => v.id).join(",");
+  if (!placed.length || key === S.fittedOn) return;
+  S.fittedOn = key;
+  field.fitTo(placed.map((v) => [v.live.lat, v.live.lon]));
 }
 
 function renderBindings(keep = false) {
@@ -448,9 +475,10 @@ function renderBindings(keep = false) {
     }
     return;
   }
+  const startsAt = area.startVehicles(); // a UAV that starts where vehicle X is flies X
   body.replaceChildren(...uavs.map((u, i) => {
     const select = el("select", { "data-uav": u.id, "data-loc": `bindings.${u.id}`, "aria-label": `vehicle for ${u.id}` }, ...options());
-    const fallback = S.vehicles[i]?.id ?? (S.discovered[i - S.vehicles.length] ? `heard:${S.discovered[i - S.vehicles.length].sysid}` : "");
+    const fallback = startsAt.get(u.id) ?? S.vehicles[i]?.id ?? (S.discovered[i - S.vehicles.length] ? `heard:${S.discovered[i - S.vehicles.length].sysid}` : "");
     select.value = chosen.get(u.id) ?? fallback;
     return el("tr", {}, el("th", { scope: "row" }, el("span", { class: "swatch", style: `--c:${colourOf(i)}` }), u.id), el("td", {}, select));
   }));
@@ -762,7 +790,7 @@ async function lookBack() {
     const planOut = await get(`/plans/${flight.plan_id}`);
     const stored = await get(`/scenarios/${planOut.scenario_id}`);
     const watched = S.flight?.id === id;
-    setScenario(stored.scenario, stored.id, !watched);
+    setScenario(stored.scenario, stored.id, !watched, stored.geographic);
     showPlan(planOut);
     const events = await allEvents(id);
     const ended = events.find((e) => e.kind === "FlightEnded");
@@ -810,6 +838,7 @@ async function lookBack() {
 
 function wire() {
   field.onCell = onCell;
+  area.wire();
   document.querySelectorAll("#scenario-form [data-bind]").forEach(bindInput);
   $("load-case-btn").addEventListener("click", async () => {
     try { setScenario(await get(`/cases/${encodeURIComponent($("case-select").value)}`), null); } catch (error) { fail(error); }
@@ -817,7 +846,7 @@ function wire() {
   $("load-stored-btn").addEventListener("click", async () => {
     const id = $("stored-select").value;
     if (!id) return;
-    try { const s = await get(`/scenarios/${id}`); setScenario(s.scenario, s.id); } catch (error) { fail(error); }
+    try { const s = await get(`/scenarios/${id}`); setScenario(s.scenario, s.id, true, s.geographic); } catch (error) { fail(error); }
   });
   $("add-uav-btn").addEventListener("click", addUav);
   $("save-scenario-btn").addEventListener("click", () => S.scenario && storeScenario());

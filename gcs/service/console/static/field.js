@@ -59,14 +59,24 @@ export class FieldMap {
     }
     L.control.scale({ imperial: false, maxWidth: 160 }).addTo(this.map);
     northArrow().addTo(this.map);
+    // Panes below the paths (overlayPane, 400): the grid's cells, then the area and its
+    // zones over them; the shape being drawn above everything.
+    for (const [pane, z] of [["cells", 380], ["geo", 390], ["sketch", 450]]) {
+      this.map.createPane(pane).style.zIndex = String(z);
+    }
     this.layers = {};
-    for (const name of ["grid", "scenario", "plan", "flown", "anim", "objects", "vehicles"]) {
+    for (const name of ["grid", "scenario", "geo", "plan", "flown", "anim", "objects", "parked", "sketch", "vehicles"]) {
       this.layers[name] = L.layerGroup().addTo(this.map);
     }
     this.frame = null;
     this.vehicles = new Map(); // uav id -> {marker, trail}
+    this.parked = new Map(); // vehicle id -> marker, for vehicles not in a flight
     this.onCell = null;
+    this.onMapClick = null; // (latlng) => true when it took the click (drawing the area)
+    this.onMapDblClick = null;
+    this.map.on("dblclick", (e) => this.onMapDblClick?.(e.latlng));
     this.map.on("click", (e) => {
+      if (this.onMapClick?.(e.latlng)) return;
       if (!this.frame || !this.onCell) return;
       const [x, y] = this.frame.toCells(e.latlng.lat, e.latlng.lng);
       const cell = [Math.round(x), Math.round(y)];
@@ -77,6 +87,105 @@ export class FieldMap {
   }
 
   ll(x, y) { return this.frame.toLatLng(x, y); }
+
+  /** Centre the view on these [lat, lon] with room around them (at least minSpanM across):
+   * where the vehicles are, before any scenario is loaded. */
+  fitTo(latlngs, minSpanM = 200) {
+    if (!latlngs.length) return;
+    const bounds = L.latLngBounds(latlngs).pad(0.5);
+    const c = bounds.getCenter();
+    const dLat = minSpanM / 2 / 111320;
+    const dLon = dLat / Math.max(Math.cos(c.lat * Math.PI / 180), 0.01);
+    bounds.extend([[c.lat - dLat, c.lng - dLon], [c.lat + dLat, c.lng + dLon]]);
+    this.map.fitBounds(bounds, { animate: false });
+  }
+
+  /** Drawing a shape: a double click closes it instead of zooming. */
+  setDrawing(on) {
+    if (on) this.map.doubleClickZoom.disable(); else this.map.doubleClickZoom.enable();
+    this.map.getContainer().classList.toggle("drawing", on);
+  }
+
+  /** Registered vehicles not in a flight, where they last reported: {id, name, lat, lon,
+   * online}. A flight's live vehicles are drawn by updateVehicles instead. */
+  showParked(vehicles) {
+    const seen = new Set();
+    for (const v of vehicles) {
+      if (v.lat == null || v.lon == null) continue;
+      seen.add(v.id);
+      let marker = this.parked.get(v.id);
+      if (!marker) {
+        const html = `<div class="parked-vehicle" data-vehicle="${escape(v.id)}">`
+          + '<svg viewBox="-8 -8 16 16" width="16" height="16" aria-hidden="true"><circle r="6" fill="#20262e" stroke="#fff" stroke-width="2"/></svg>'
+          + `<span class="vehicle-label">${escape(v.name ?? v.id)}</span></div>`;
+        marker = L.marker([v.lat, v.lon], {
+          icon: L.divIcon({ className: "parked-icon", html, iconSize: [16, 16], iconAnchor: [8, 8] }),
+          interactive: false, keyboard: false, zIndexOffset: 500,
+        }).addTo(this.layers.parked);
+        this.parked.set(v.id, marker);
+      }
+      marker.setLatLng([v.lat, v.lon]);
+      const el = marker.getElement()?.querySelector(".parked-vehicle");
+      if (el) {
+        el.dataset.lat = v.lat; el.dataset.lon = v.lon;
+        el.classList.toggle("offline", !v.online);
+        el.title = `${v.name ?? v.id} (vehicle ${v.id})${v.online ? "" : ", not heard"}`;
+      }
+    }
+    for (const [id, marker] of this.parked) {
+      if (!seen.has(id)) { marker.remove(); this.parked.delete(id); }
+    }
+  }
+
+  /** A geographic scenario's features over the map: the area's outline, the no-fly zones,
+   * starts (S) and goals (G) per UAV, rally points. `whereIs(vehicleId)` places a start
+   * "where vehicle X is" that has no position yet; `refused(index)` marks the feature a
+   * 422 named. */
+  setGeo(collection, uavIndex = () => 0, whereIs = () => null, refused = () => false) {
+    const layer = this.layers.geo;
+    layer.clearLayers();
+    for (const [i, f] of (collection?.features ?? []).entries()) {
+      const p = f.properties ?? {};
+      const g = f.geometry;
+      const bad = refused(i) ? " geo-refused" : "";
+      if (p.role === "area" || p.role === "no-fly") {
+        const className = `${p.role === "area" ? "geo-area" : "geo-zone"}${bad}`;
+        const ring = (r) => r.map(([lon, lat]) => [lat, lon]);
+        const style = { className, weight: 2, interactive: false, pane: "geo" };
+        let shape = null;
+        if (g?.type === "Polygon") shape = L.polygon(g.coordinates.map(ring), style);
+        else if (g?.type === "MultiPolygon") shape = L.polygon(g.coordinates.map((poly) => poly.map(ring)), style);
+        else if (g?.type === "Point" && p.radius_m) {
+          shape = L.circle([g.coordinates[1], g.coordinates[0]], { ...style, radius: p.radius_m });
+        }
+        shape?.addTo(layer).getElement()?.setAttribute("data-feature", String(i));
+      } else if (p.role === "start" || p.role === "goal") {
+        const at = g?.type === "Point" ? [g.coordinates[1], g.coordinates[0]] : whereIs(p.vehicle);
+        if (!at) continue;
+        const k = uavIndex(p.uav);
+        const text = `${p.role === "start" ? "S" : "G"} ${p.uav ?? "?"}`;
+        const html = `<div class="geo-${p.role}${bad}" data-uav="${escape(p.uav ?? "")}" data-feature="${i}"`
+          + ` style="--c:${colourOf(k)}"><span>${escape(text)}</span></div>`;
+        L.marker(at, {
+          icon: L.divIcon({ className: "geo-end", html, iconSize: [12, 12], iconAnchor: [6, 6] }),
+          interactive: false, keyboard: false,
+        }).addTo(layer);
+      } else if (p.role === "rally" && g?.type === "Point") {
+        this.label(layer, null, null, "R", "geo-rally", [g.coordinates[1], g.coordinates[0]]);
+      }
+    }
+  }
+
+  /** The shape being drawn: its points so far. */
+  setSketch(latlngs) {
+    const layer = this.layers.sketch;
+    layer.clearLayers();
+    if (!latlngs?.length) return;
+    L.polyline(latlngs, { className: "sketch", weight: 2, dashArray: "6 4", interactive: false, pane: "sketch" }).addTo(layer);
+    for (const p of latlngs) {
+      L.circleMarker(p, { radius: 4, className: "sketch-vertex", weight: 2, interactive: false, pane: "sketch" }).addTo(layer);
+    }
+  }
 
   square(x, y, half = 0.5) {
     return [this.ll(x - half, y - half), this.ll(x + half, y - half),
@@ -98,7 +207,7 @@ export class FieldMap {
     const lines = [];
     for (let x = 0; x <= g.width; x++) lines.push([this.ll(x - 0.5, -0.5), this.ll(x - 0.5, g.height - 0.5)]);
     for (let y = 0; y <= g.height; y++) lines.push([this.ll(-0.5, y - 0.5), this.ll(g.width - 0.5, y - 0.5)]);
-    L.polyline(lines, { className: "grid-line", weight: 1, interactive: false }).addTo(grid);
+    L.polyline(lines, { className: "grid-line", weight: 1, interactive: false, pane: "cells" }).addTo(grid);
     const step = Math.max(1, Math.ceil(Math.max(g.width, g.height) / 20));
     for (let x = 0; x < g.width; x += step) this.label(grid, x, -0.9, String(x), "axis-label");
     for (let y = 0; y < g.height; y += step) this.label(grid, -0.9, y, String(y), "axis-label");
@@ -106,7 +215,7 @@ export class FieldMap {
     const layer = this.layers.scenario;
     layer.clearLayers();
     for (const [x, y] of scenario.obstacles ?? []) {
-      L.polygon(this.square(x, y), { className: "obstacle", weight: 1, interactive: false }).addTo(layer);
+      L.polygon(this.square(x, y), { className: "obstacle", weight: 1, interactive: false, pane: "cells" }).addTo(layer);
     }
     const objects = Array.isArray(scenario.non_uav_objects) ? scenario.non_uav_objects : [];
     for (const [x, y] of objects) this.object(layer, x, y, "object");
@@ -119,8 +228,8 @@ export class FieldMap {
     }
   }
 
-  label(layer, x, y, text, className) {
-    L.marker(this.ll(x, y), {
+  label(layer, x, y, text, className, at = null) {
+    L.marker(at ?? this.ll(x, y), {
       icon: L.divIcon({ className, html: escape(text), iconSize: [24, 14], iconAnchor: [12, 7] }),
       interactive: false, keyboard: false,
     }).addTo(layer);
@@ -160,8 +269,9 @@ export class FieldMap {
   }
 
   /** Each UAV's path in its colour; the `replanned` ones (their new path, from the live
-   * replan's answer) marked as such. */
-  setPlan(plan, order, cellSize, radii, replanned = new Set()) {
+   * replan's answer) marked as such. `wgs84` (the plan's `trajectories_wgs84`, [t, lat,
+   * lon] per UAV) is drawn as it is; a replanned path comes in cells. */
+  setPlan(plan, order, cellSize, radii, replanned = new Set(), wgs84 = null) {
     const layer = this.layers.plan;
     layer.clearLayers();
     this.plan = plan;
@@ -170,12 +280,13 @@ export class FieldMap {
     if (!plan) { this.layers.anim.clearLayers(); this.discs = null; return; }
     plan.uavs.forEach((u) => {
       const i = order(u.id);
-      const points = u.trajectory.map(([, x, y]) => this.ll(x, y));
       const changed = replanned.has(u.id);
+      const inWgs84 = !changed && wgs84?.[u.id];
+      const points = inWgs84 ? inWgs84.map(([, lat, lon]) => [lat, lon]) : u.trajectory.map(([, x, y]) => this.ll(x, y));
       L.polyline(points, {
         color: colourOf(i), weight: changed ? 4 : 3, opacity: 0.9, dashArray: dashOf(i),
         interactive: false, className: `plan-path${changed ? " replanned" : ""}`,
-      }).addTo(layer);
+      }).addTo(layer).getElement()?.setAttribute("data-uav", u.id);
       const [, gx, gy] = u.trajectory[u.trajectory.length - 1];
       if (changed) this.label(layer, gx, gy + 0.6, `${u.id} replanned`, "replan-label");
     });
@@ -212,6 +323,8 @@ export class FieldMap {
   /** Live vehicles: a heading arrow per UAV with its trail. */
   updateVehicles(vehicles, order) {
     for (const v of vehicles) {
+      const parked = this.parked.get(v.vehicle_id);
+      if (parked) { parked.remove(); this.parked.delete(v.vehicle_id); } // flying now
       if (v.lat == null || v.lon == null) continue;
       const i = order(v.uav_id);
       let entry = this.vehicles.get(v.uav_id);
