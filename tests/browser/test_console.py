@@ -12,10 +12,7 @@ to the test's temporary directory.
 from __future__ import annotations
 
 import json
-import os
-import shutil
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,58 +29,15 @@ from gcs.service.storage.tables import EventRow
 from planner.cases import load_case
 from planner.trajectory import Trajectory
 from sitl_mock import Simulator
+from tests.browser.chromium import NEEDS_CHROMIUM, Browser
 from tests.e2e.flying import Flight, fleet_at_starts, ground_speed, register, wait_for
 from tests.service_process import TOKEN, ServiceProcess
 
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-pytestmark = [
-    pytest.mark.slow,
-    pytest.mark.skipif(
-        not Path(CHROMIUM).exists(),
-        reason="Chromium is not installed (apt-get install chromium; .ci/run does it)",
-    ),
-]
-sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed")
+pytestmark = NEEDS_CHROMIUM
+pytest.importorskip("playwright.sync_api", reason="playwright is not installed")
 
-# Playwright adds --headless and a fresh --user-data-dir of its own (it refuses ours).
-CHROMIUM_FLAGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 SPEEDUP = 5.0  # slow enough that the page can pause and report mid-flight
-VIEWPORT = {"width": 1280, "height": 800}
 UAVS = ("uav1", "uav2", "uav3")
-
-
-@dataclass
-class Browser:
-    page: Any
-    service_url: str
-    errors: list[str] = field(default_factory=list)
-    foreign: list[str] = field(default_factory=list)
-
-    def js(self, expression: str, arg: Any = None) -> Any:
-        return self.page.evaluate(expression, arg)
-
-    def wait_js(self, expression: str, timeout_s: float, arg: Any = None) -> Any:
-        return self.page.wait_for_function(expression, arg=arg, timeout=timeout_s * 1000)
-
-    def shot(self, directory: Path, name: str) -> Path:
-        path = directory / name
-        self.page.screenshot(path=str(path))
-        return path
-
-
-@pytest.fixture
-def shots(tmp_path: Path) -> Path:
-    directory = Path(os.environ.get("MVO_GCS_SCREENSHOTS") or tmp_path / "shots")
-    directory.mkdir(parents=True, exist_ok=True)
-    return directory
 
 
 @pytest.fixture
@@ -91,47 +45,6 @@ def vehicles() -> Iterator[Simulator]:
     sim = fleet_at_starts(load_case("case-6"), speedup=SPEEDUP)
     with sim.running():
         yield sim
-
-
-@pytest.fixture
-def service(tmp_path: Path) -> Iterator[ServiceProcess]:
-    proc = ServiceProcess(tmp_path / "data")
-    proc.start()
-    yield proc
-    proc.stop()
-
-
-@pytest.fixture
-def browser(service: ServiceProcess) -> Iterator[Browser]:
-    with sync_api.sync_playwright() as playwright:
-        chromium = playwright.chromium.launch(
-            executable_path=CHROMIUM,
-            args=CHROMIUM_FLAGS,
-        )
-        # Playwright's waits evaluate strings, which the console's CSP forbids the page.
-        context = chromium.new_context(viewport=VIEWPORT, bypass_csp=True)
-        page = context.new_page()
-        page.set_default_timeout(60_000)
-        b = Browser(page, service.url)
-
-        def console(message: Any) -> None:
-            if message.type == "error":
-                b.errors.append(message.text)
-
-        page.on("console", console)
-        page.on("pageerror", lambda e: b.errors.append(f"uncaught: {e}"))
-        ws_url = service.url.replace("http://", "ws://")
-
-        def outside(request: Any) -> None:
-            if not request.url.startswith((service.url, ws_url, "data:")):
-                b.foreign.append(request.url)
-
-        page.on("request", outside)
-        try:
-            yield b
-        finally:
-            context.close()
-            chromium.close()
 
 
 # --- where things are on the screen ----------------------------------------------------
