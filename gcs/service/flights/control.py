@@ -214,8 +214,9 @@ class FlightControl:
         """Another service holds a flight this one ran (it was frozen longer than a
         lease): stop following it, command nothing."""
         book = self.flights.book
-        if (await book.row(flight_id)).owner_id in (None, self.holder.id):
-            return  # still this service's: it has just ended
+        with contextlib.suppress(NotFound):  # deleted meanwhile: forgotten below
+            if (await book.row(flight_id)).owner_id in (None, self.holder.id):
+                return  # still this service's: it has just ended
         log.warning("flight %s: another service holds it now; letting it go", flight_id)
         await book.slot(flight_id).preempt()
         self.operator.stop_watching(flight_id)
