@@ -25,8 +25,10 @@ Algorithm 1 with its exploration made constructive (see docs/planner.md):
 
 The conflict table keeps the exact check's verdict for every pair as paths change, so the
 first safe plan is known the moment it exists; the final plan is checked once more by
-`planner.safety.check_plan`. Nothing here reads the clock for a decision unless a time
-budget is set, so without one the same seed gives the same plan.
+`planner.safety.check_plan`. Steps 1 and 2 never read the clock (unless the hard limit
+`safe_start_limit_s` is set), so the first safe plan is the same however loaded the
+machine is; the time budget decides only how long step 3 (and the optimizer's repair of
+what step 2 left) runs. Without a budget the same seed gives the same plan.
 """
 
 from __future__ import annotations
@@ -73,26 +75,36 @@ MIN_SHARE = 1e-2  # unless its excess is at least this share of the plan's cost
 def plan_anytime(
     scenario: Scenario, settings: PlannerSettings, progress: ProgressCallback | None
 ) -> Plan:
-    """The `qos` plan: lone paths, safe start, improvement; see the module docstring."""
+    """The `qos` plan: lone paths, safe start, improvement; see the module docstring.
+
+    The time budget bounds only what follows the safe start (the optimizer's repair of
+    what it left, and the improvement): the lone paths, their shaping, the conflict table
+    and the safe start itself never read the clock, so the first safe plan is the same
+    on an idle machine and on a loaded one. Only `safe_start_limit_s`, when set, stops
+    them: the plan is then refused with how long they would have needed.
+    """
     budget = Budget(settings.time_budget_s)
+    start = Budget(settings.safe_start_limit_s, started=budget.started)
     specs = {u.id: u for u in scenario.uavs}
     obstacles = scenario.blocked()
     objects = scenario.object_cells()
     object_map = cell_map(objects, obstacles.shape)
     blocked = obstacles | object_map
-    routes, first_routes, shortest = lone_paths.routes(scenario, obstacles, blocked, budget)
+    routes, first_routes, shortest = lone_paths.routes(scenario, obstacles, blocked, start)
     refuse = functools.partial(refused, scenario, settings, budget, routes, shortest)
     if len(routes) < len(specs):
         missing = [u.id for u in scenario.uavs if u.id not in routes]
+        if start.expired():
+            return refuse(_out_of_time(start, "routing", len(routes), len(specs)))
         return refuse(f"routing {len(routes)} of {len(specs)} UAVs ({_some(missing)} have no path)")
-    geometry = lone_paths.shaped(scenario, routes, blocked, budget)
+    geometry = lone_paths.shaped(scenario, routes, blocked, start)
     paths = {u.id: Trajectory.from_waypoints(geometry[u.id], u.speed) for u in scenario.uavs}
     world = Map(blocked, None, blocked)
     checked = budget.elapsed()
     table = ConflictTable({u.id: u.radius for u in scenario.uavs}, blocked)
     for count, (uav, trajectory) in enumerate(paths.items()):
-        if budget.expired():
-            return refuse(f"checking {count} of {len(paths)} lone paths against the others")
+        if start.expired():
+            return refuse(_out_of_time(start, "checking the lone paths", count, len(paths)))
         table.update(uav, trajectory)
     # The final exact check covers every pair as the table's build did: keep its time back.
     budget.keep_back(2.0 * (budget.elapsed() - checked) + FINISH_S)
@@ -108,7 +120,7 @@ def plan_anytime(
     first = exploration(state, object_map, first_routes)
     state.start_distance = adjoining_start_distance(scenario, first.priority)
     engine.record_if_safe()
-    safe_start(engine, world, ~blocked)
+    safe_start(engine, world, ~blocked, start)
     if not state.table.clear() and not budget.expired():
         exploit(engine, world)  # what waiting and stepping aside could not solve
     reason = improve_where_it_pays(engine, world)
@@ -118,6 +130,18 @@ def plan_anytime(
     state.paths = state.best.paths
     state.replans = state.best.replans
     return finish(state, judged, first, reason)  # a fresh exact check has the last word
+
+
+def _out_of_time(start: Budget, doing: str, done: int, total: int) -> str:
+    """What a refusal says: the limit, how far the safe start got, and at the rate it
+    went, at least how long it would have needed."""
+    spent = start.elapsed()
+    needed = spent * total / max(done, 1)
+    return (
+        f"the safe start's time limit of {start.seconds:g} s ran out while {doing} "
+        f"({done} of {total} UAVs done in {spent:.2f} s); it would need at least "
+        f"{needed:.1f} s (safe_start_limit_s)"
+    )
 
 
 def exploration(
@@ -143,17 +167,18 @@ def exploration(
     return Exploration(conflicts, collision_paths, priority, dict(state.shortest), threat, closest)
 
 
-def safe_start(engine: Engine, world: Map, free: NDArray[np.bool_]) -> None:
+def safe_start(engine: Engine, world: Map, free: NDArray[np.bool_], start: Budget) -> None:
     """Step 2 made constructive: the highest-priority UAV in trouble (eq. 7) is made
-    safe against the others; one that cannot be waits for another one's change."""
+    safe against the others; one that cannot be waits for another one's change. The
+    time budget is not read here (only `start`, the optional hard limit)."""
     state = engine.state
     failed: Counter[str] = Counter()
-    while not state.budget.expired():
+    while not start.expired():
         candidates = [u for u in state.table.troubled() if not failed[u]]
         if not candidates:
             return
         uav = candidates[0]
-        flight = safe_flight(engine, uav, free)
+        flight = safe_flight(engine, uav, free, start)
         if flight is not None and engine.adopt(uav, flight, Phase.SAFE_START):
             failed.clear()
         else:
@@ -162,7 +187,9 @@ def safe_start(engine: Engine, world: Map, free: NDArray[np.bool_]) -> None:
     state.stopped_by_budget = True
 
 
-def safe_flight(engine: Engine, uav: str, free: NDArray[np.bool_]) -> Trajectory | None:
+def safe_flight(
+    engine: Engine, uav: str, free: NDArray[np.bool_], start: Budget
+) -> Trajectory | None:
     """A flight for `uav` clear of every other one: hovering along its lone path, else
     a space-time search (whose path is then pulled and re-timed if that is cheaper)."""
     state, flow = engine.state, engine.flow
@@ -171,7 +198,7 @@ def safe_flight(engine: Engine, uav: str, free: NDArray[np.bool_]) -> Trajectory
     flight = schedule(flow.geometry[uav], spec.speed, spec.radius, others)
     if flight is not None:
         return flight
-    found = space_time.search(spec, free, others, SearchLimits(), state.budget.expired)
+    found = space_time.search(spec, free, others, SearchLimits(), start.expired)
     if found is None:
         return None
     pulled = pull_string(lone_paths.geometry_of(found), spec.radius, state.table.blocked)

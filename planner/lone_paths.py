@@ -22,15 +22,15 @@ from planner.trajectory import Trajectory, merge_collinear
 Array = NDArray[np.float64]
 Route = list[tuple[int, int]]
 WINDOW = 5.0  # cells of lone path searched on either side of where a UAV hovers
-SHAPING_SHARE = 0.3  # of the time budget: past it, lone paths are no longer shortened
 
 
 def routes(
-    scenario: Scenario, obstacles: NDArray[np.bool_], blocked: NDArray[np.bool_], budget: Budget
+    scenario: Scenario, obstacles: NDArray[np.bool_], blocked: NDArray[np.bool_], limit: Budget
 ) -> tuple[dict[str, Route], dict[str, Route], dict[str, float]]:
     """Each UAV's shortest grid path with the objects blocked, its obstacle-only one (they
     differ for the UAVs an object touches: the ones the wormhole step, eq. 9, replans),
-    and the first one's length; only the UAVs routed before the budget ran out.
+    and the first one's length; only the UAVs routed before `limit` (the safe start's
+    hard limit, none by default) ran out.
 
     One bounded Dijkstra per UAV on the obstacle grid (`GridGraph.route`); a second only
     for a touched UAV. Where the objects wall a goal off, the obstacle-only path is kept
@@ -40,7 +40,7 @@ def routes(
     with_objects = GridGraph.build(blocked) if (blocked != obstacles).any() else plain
     found, first, lengths = {}, {}, {}
     for u in scenario.uavs:
-        if budget.expired():
+        if limit.expired():
             break
         length, cells = plain.route(u.start, u.goal)
         assert cells is not None, "the scenario's validation guarantees a path"
@@ -66,18 +66,16 @@ def valid(cells: Route, blocked: NDArray[np.bool_]) -> bool:
 
 
 def shaped(
-    scenario: Scenario, found: dict[str, Route], blocked: NDArray[np.bool_], budget: Budget
+    scenario: Scenario, found: dict[str, Route], blocked: NDArray[np.bool_], limit: Budget
 ) -> dict[str, Array]:
     """The routes as polylines, pulled and tightened. Shortcuts and tightening only
-    shorten them: with a budget they stop at a share of it, and the rest of the fleet
-    keeps its grid paths (as safe, a bit longer)."""
-    shaping = budget.seconds is None or budget.elapsed() < SHAPING_SHARE * budget.seconds
+    shorten them; `limit` is the safe start's hard limit (none by default): past it the
+    rest of the fleet keeps its grid paths (as safe, a bit longer)."""
     geometry = {}
     for u in scenario.uavs:
         cells = merge_collinear(np.array(found[u.id], dtype=float))
-        if shaping:
+        if not limit.expired():
             cells = tighten(pull_string(cells, u.radius, blocked), u.radius, blocked)
-            shaping = budget.seconds is None or budget.elapsed() < SHAPING_SHARE * budget.seconds
         geometry[u.id] = cells
     return geometry
 

@@ -2,8 +2,8 @@
 
 `finish` builds it from the planning state; `table_report` is the exact check's
 report read from the conflict table (for a plan that is not safe, at no extra cost);
-`refused` is the anytime flow's answer when the budget ran out before the fleet's lone
-paths were even known to conflict or not.
+`refused` is the anytime flow's answer when the safe start's time limit ran out before
+the fleet's lone paths were even known to conflict or not.
 """
 
 from __future__ import annotations
@@ -126,15 +126,13 @@ def refused(
     shortest: dict[str, float],
     doing: str,
 ) -> Plan:
-    """The plan when the budget ran out before the fleet's lone paths were even known to
-    conflict or not: infeasible, the routed UAVs on their grid paths, the others on their
-    starts, and one conflict that says what was being done (no exact check: nothing here
-    is meant to be flown)."""
+    """The plan when the safe start's time limit (`safe_start_limit_s`) ran out before the
+    fleet's lone paths were even known to conflict or not (`doing` says which limit, what
+    was being done and how long it would have needed): infeasible, the routed UAVs on
+    their grid paths, the others on their starts, and one conflict that says so (no exact
+    check: nothing here is meant to be flown)."""
     missing = [u.id for u in scenario.uavs if u.id not in routes] or [u.id for u in scenario.uavs]
-    message = (
-        f"planning refused: the time budget of {settings.time_budget_s:g} s ran out while "
-        f"{doing}; give it more time or plan fewer UAVs"
-    )
+    message = f"planning refused: {doing}; give it more time or plan fewer UAVs"
     uavs = []
     for u in scenario.uavs:
         cells = routes.get(u.id, [u.start])

@@ -54,6 +54,10 @@ class PlannerSettings:
     population: int = 30
     iterations: int = 1000  # per optimizer run, at most
     time_budget_s: float | None = 5.0  # wall time for the whole plan; None: iterations only
+    # qos with a safe start: the budget bounds only the improvement; the safe start runs
+    # to its end, unless this hard limit (wall seconds from the plan's start) is set and
+    # runs out first: then the plan is refused, saying how long it would have needed.
+    safe_start_limit_s: float | None = None
     patience: int | None = 100  # a run stops after this many iterations without gain
     improve_rounds: int = 3  # qos only: rounds of the improvement phase, 0 for none
     # qos only: start from safe flights (safe intervals, space-time A*; planner.anytime)

@@ -6,17 +6,31 @@ square centred on the integer point (x, y). Time is in seconds from a common sta
 
 from __future__ import annotations
 
+import os
 from typing import Annotated, Self
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 from scipy import ndimage
 
 MAX_GRID_SIDE = 500
 """Largest width or height accepted, in cells."""
-MAX_UAVS = 100
-"""Most UAVs in one scenario."""
+MAX_UAVS = 250
+"""Most UAVs in one scenario that may be flown: one MAVLink network (system ids 1-254,
+the ground station's own 255 aside), with room to spare."""
+PLANNED_UAVS_CEILING = 1000
+"""Most UAVs any setting lets a planning-only scenario have (`max_planned_uavs`)."""
+PLANNED_UAVS_ENV = "MVO_GCS_MAX_PLANNED_UAVS"
+"""The setting: most UAVs in a scenario that is only planned (`mvo-gcs plan`), from
+MAX_UAVS (the default) up to PLANNED_UAVS_CEILING."""
 MAX_RANDOM_OBJECTS = 10_000
 
 Cell = tuple[Annotated[int, Field(strict=True)], Annotated[int, Field(strict=True)]]
@@ -89,12 +103,24 @@ class Scenario(_Strict):
     name: str = Field(default="scenario", max_length=200)
     grid: Grid
     origin: Origin | None = None
-    uavs: list[UAVSpec] = Field(min_length=1, max_length=MAX_UAVS)
+    uavs: list[UAVSpec] = Field(min_length=1, max_length=PLANNED_UAVS_CEILING)
     obstacles: list[Cell] = Field(default_factory=list)
     non_uav_objects: list[Cell] | RandomObjects = Field(default_factory=list)
 
     @model_validator(mode="after")
-    def _check_layout(self) -> Self:
+    def _check_layout(self, info: ValidationInfo) -> Self:
+        limit = MAX_UAVS
+        if isinstance(info.context, dict) and info.context.get("max_uavs") is not None:
+            limit = int(info.context["max_uavs"])
+        if len(self.uavs) > limit:
+            raise ValueError(
+                f"{len(self.uavs)} UAVs: at most {limit} per scenario"
+                + (
+                    f" (planning only: set {PLANNED_UAVS_ENV}, up to {PLANNED_UAVS_CEILING})"
+                    if limit < PLANNED_UAVS_CEILING
+                    else ""
+                )
+            )
         problems = _layout_problems(self)
         if problems:
             raise ValueError("; ".join(problems))
@@ -199,8 +225,24 @@ def _unreachable_goals(s: Scenario) -> list[str]:
     ]
 
 
-def load_scenario(data: dict | str | bytes) -> Scenario:
-    """A validated scenario from a dict or JSON text (pydantic.ValidationError if invalid)."""
+def max_planned_uavs() -> int:
+    """Most UAVs in a scenario that is only planned: the PLANNED_UAVS_ENV setting (at
+    least MAX_UAVS, at most PLANNED_UAVS_CEILING), MAX_UAVS when unset."""
+    raw = os.environ.get(PLANNED_UAVS_ENV, "").strip()
+    if not raw:
+        return MAX_UAVS
+    try:
+        value = int(raw)
+    except ValueError:
+        raise ValueError(f"{PLANNED_UAVS_ENV}={raw!r} is not a whole number") from None
+    return min(max(value, MAX_UAVS), PLANNED_UAVS_CEILING)
+
+
+def load_scenario(data: dict | str | bytes, max_uavs: int | None = None) -> Scenario:
+    """A validated scenario from a dict or JSON text (pydantic.ValidationError if invalid);
+    at most `max_uavs` UAVs (default MAX_UAVS, the most that may be flown; more only for
+    planning, at most PLANNED_UAVS_CEILING)."""
+    context = {"max_uavs": min(max_uavs, PLANNED_UAVS_CEILING) if max_uavs else None}
     if isinstance(data, str | bytes):
-        return Scenario.model_validate_json(data)
-    return Scenario.model_validate(data)
+        return Scenario.model_validate_json(data, context=context)
+    return Scenario.model_validate(data, context=context)

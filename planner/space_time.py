@@ -207,21 +207,27 @@ class _IndexedSearch(Search):
     speeds: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     out_of_time: Callable[[], bool] = lambda: False
     tests: int = 0
+    _near_key: tuple[float, float, float] | None = None
+    _near: list[int] = field(default_factory=list)
 
     def safe(self, move: Move) -> bool:
         self.tests += 1
         if self.tests % CLOCK_EVERY == 0 and self.out_of_time():
             raise _OutOfTime
-        t0, x0, y0, t1, _, _ = move
+        t0, x0, y0, _, _, _ = move
         if not self.flights:
             return True
-        b = min(int(t0 / BUCKET + 0.5), self.positions.shape[0] - 1)
-        gap = np.hypot(self.positions[b, :, 0] - x0, self.positions[b, :, 1] - y0)
-        # Within a bucket a flight moves at most speed x (BUCKET / 2 + the move's time).
-        near = (gap < self.reach + math.sqrt(2.0) + (t1 - t0) * self.speeds) & (self.ends >= t0)
+        if self._near_key != (t0, x0, y0):  # the moves of one expansion share their origin
+            b = min(int(t0 / BUCKET + 0.5), self.positions.shape[0] - 1)
+            gap = np.hypot(self.positions[b, :, 0] - x0, self.positions[b, :, 1] - y0)
+            # Within a bucket a flight moves at most speed x (BUCKET / 2 + the move's time):
+            # the longest move from here (a diagonal, or a wait) bounds every one of them.
+            longest = max(math.sqrt(2.0), self.limits.wait) / self.spec.speed
+            near = (gap < self.reach + math.sqrt(2.0) + longest * self.speeds) & (self.ends >= t0)
+            self._near_key, self._near = (t0, x0, y0), np.flatnonzero(near).tolist()
         return all(
             min_gap(move, self.flights[k]) >= self.spec.radius + self.flights[k].radius
-            for k in np.flatnonzero(near)
+            for k in self._near
         )
 
 

@@ -18,7 +18,7 @@ from gcs.mission.geographic import GeographicError, derive_file, looks_geographi
 from planner.cases import CASES, load_case
 from planner.optimizers import ALGORITHMS
 from planner.pipeline import PlannerSettings
-from planner.scenario import Scenario, load_scenario
+from planner.scenario import Scenario, load_scenario, max_planned_uavs
 
 
 class ScenarioFileError(ValueError):
@@ -100,7 +100,7 @@ def read_scenario_file(source: str) -> ScenarioFile:
         if suffix == ".kml" or suffix == ".geojson" or looks_geographic(_json_or_none(text)):
             derived = derive_file(from_kml(text) if suffix == ".kml" else text)
             return ScenarioFile(derived.scenario, derived.frame)
-        return ScenarioFile(load_scenario(text))
+        return ScenarioFile(load_scenario(text, max_uavs=max_planned_uavs()))
     except ValidationError as exc:
         raise ScenarioFileError(f"{source} is not a valid scenario:\n{_describe(exc)}") from exc
     except GeographicError as exc:

@@ -31,7 +31,7 @@ def crossing_scenario(
     for _ in range(MAX_TRIES):
         data = _draw(rng, size, uavs, obstacle_share, objects)
         try:
-            return load_scenario({"name": f"crossing-{seed}", **data})
+            return load_scenario({"name": f"crossing-{seed}", **data}, max_uavs=uavs)
         except ValidationError:
             continue
     raise RuntimeError(f"no valid crossing scenario for seed {seed} in {MAX_TRIES} tries")
@@ -84,7 +84,7 @@ def random_scenario(
     for _ in range(MAX_TRIES):
         data = _draw_random(rng, size, uavs, obstacle_share, objects, min_gap)
         try:
-            return load_scenario({"name": f"random-{seed}", **data})
+            return load_scenario({"name": f"random-{seed}", **data}, max_uavs=uavs)
         except ValidationError:
             continue
     raise RuntimeError(f"no valid random scenario for seed {seed} in {MAX_TRIES} tries")

@@ -106,3 +106,31 @@ def test_random_objects_land_on_free_cells_reproducibly() -> None:
     assert not taken & set(first)
     other = load_scenario(scenario(non_uav_objects={"random": 12, "seed": 8})).object_cells()
     assert other != first
+
+
+def _fleet_of(count: int) -> dict:
+    uavs = [
+        {"id": f"u{k}", "start": [k % 300, k // 300], "goal": [k % 300, 499]} for k in range(count)
+    ]
+    return scenario(grid={"width": 300, "height": 500}, uavs=uavs, obstacles=[], non_uav_objects=[])
+
+
+def test_a_scenario_takes_a_mavlink_network_of_uavs_and_more_only_for_planning(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from planner.scenario import MAX_UAVS, PLANNED_UAVS_CEILING, PLANNED_UAVS_ENV, max_planned_uavs
+
+    assert MAX_UAVS == 250
+    assert len(load_scenario(_fleet_of(250)).uavs) == 250
+    assert f"251 UAVs: at most 250 per scenario (planning only: set {PLANNED_UAVS_ENV}" in (
+        error_text(_fleet_of(251))
+    )
+    assert len(load_scenario(_fleet_of(400), max_uavs=400).uavs) == 400
+    monkeypatch.delenv(PLANNED_UAVS_ENV, raising=False)
+    assert max_planned_uavs() == MAX_UAVS
+    monkeypatch.setenv(PLANNED_UAVS_ENV, "400")
+    assert max_planned_uavs() == 400
+    monkeypatch.setenv(PLANNED_UAVS_ENV, "100000")
+    assert max_planned_uavs() == PLANNED_UAVS_CEILING
+    with pytest.raises(ValidationError):
+        load_scenario(_fleet_of(PLANNED_UAVS_CEILING + 1), max_uavs=PLANNED_UAVS_CEILING + 5)
