@@ -35,20 +35,33 @@ def ensure_token(settings: Settings) -> tuple[str, Path | None]:
     return token, path
 
 
-async def require_token(
-    request: Request,
-    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)],
-) -> None:
-    expected: str = request.app.state.token
-    if credentials is None or credentials.scheme.lower() != "bearer":
-        raise HTTPException(
+class TokenRefused(Exception):
+    """401 (no bearer token) or 403 (a wrong one), with the header that says which scheme."""
+
+    def __init__(self, status_code: int, detail: str) -> None:
+        super().__init__(detail)
+        self.status_code, self.detail = status_code, detail
+        self.headers = {"WWW-Authenticate": "Bearer"}
+
+
+def check_bearer(authorization: str | None, expected: str) -> None:
+    """The one token check: the request guard runs it before any byte of a body is read,
+    the routes' dependency (which also puts the scheme in the OpenAPI document) again."""
+    scheme, _, given = (authorization or "").partition(" ")
+    if scheme.lower() != "bearer" or not given.strip():
+        raise TokenRefused(
             status.HTTP_401_UNAUTHORIZED,
             "this request changes state: send 'Authorization: Bearer <token>'",
-            headers={"WWW-Authenticate": "Bearer"},
         )
-    if not secrets.compare_digest(credentials.credentials.encode(), expected.encode()):
-        raise HTTPException(
-            status.HTTP_403_FORBIDDEN,
-            "the bearer token is wrong",
-            headers={"WWW-Authenticate": "Bearer"},
-        )
+    if not secrets.compare_digest(given.strip().encode(), expected.encode()):
+        raise TokenRefused(status.HTTP_403_FORBIDDEN, "the bearer token is wrong")
+
+
+async def require_token(
+    request: Request,
+    _: Annotated[HTTPAuthorizationCredentials | None, Depends(bearer)],
+) -> None:
+    try:
+        check_bearer(request.headers.get("authorization"), request.app.state.token)
+    except TokenRefused as refused:
+        raise HTTPException(refused.status_code, refused.detail, refused.headers) from None

@@ -24,12 +24,13 @@ import asyncio
 import json
 import math
 import re
-import secrets
 from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from gcs.service.api.auth import TokenRefused, check_bearer
 
 MUTATING = frozenset({"POST", "PUT", "PATCH", "DELETE"})
 MAX_JSON_DEPTH = 32
@@ -99,15 +100,10 @@ class RequestGuard:
             raise Refusal(403, f"WebSocket from origin {origin!r} refused")
 
     def _check_token(self, headers: dict[str, str]) -> None:
-        scheme, _, given = headers.get("authorization", "").partition(" ")
-        if scheme.lower() != "bearer" or not given:
-            raise Refusal(
-                401,
-                "this request changes state: send 'Authorization: Bearer <token>'",
-                {"WWW-Authenticate": "Bearer"},
-            )
-        if not secrets.compare_digest(given.strip().encode(), self.token().encode()):
-            raise Refusal(403, "the bearer token is wrong", {"WWW-Authenticate": "Bearer"})
+        try:
+            check_bearer(headers.get("authorization"), self.token())
+        except TokenRefused as refused:
+            raise Refusal(refused.status_code, refused.detail, refused.headers) from None
 
     async def _read_body(self, headers: dict[str, str], receive: Receive) -> bytes:
         declared = headers.get("content-length")
