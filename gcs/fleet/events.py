@@ -14,10 +14,20 @@ import asyncio
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 from gcs.fleet.route_tracker import VehicleProgress
 
 log = logging.getLogger("mvo_gcs.fleet")
+
+
+class FlightOutcome(StrEnum):
+    """How the watch over a flight ended; the value is the wire name (events, API)."""
+
+    LANDED = "landed"  # every vehicle flew its mission to the end and is down
+    ABORTED = "aborted"  # the operator or a fallback aborted the flight
+    TIMEOUT = "timeout"  # it ran past its time bound (and was aborted)
+    ENDED = "ended"  # the others ended without a vehicle that was withdrawn
 
 
 @dataclass(frozen=True)
@@ -149,7 +159,7 @@ class FlightEnded(FleetEvent):
     completed: bool
     min_separation_m: float | None
     closest_pair: tuple[str, str] | None
-    outcome: str = "landed"  # "landed", "aborted", "timeout", "failed"
+    outcome: FlightOutcome = FlightOutcome.LANDED
 
 
 class Listener:

@@ -16,6 +16,7 @@ from gcs.fleet.crew import Crew
 from gcs.fleet.events import (
     AddressClaimed,
     FlightEnded,
+    FlightOutcome,
     ItemReached,
     Progress,
     VehicleFailed,
@@ -33,7 +34,7 @@ from gcs.mission.motion import Gate
 @dataclass(frozen=True)
 class FlightReport:
     completed: bool  # every vehicle flew its mission to the end and landed
-    outcome: str  # "landed", "aborted", "timeout", "ended" (someone withdrawn)
+    outcome: FlightOutcome
     min_separation_m: float | None
     closest_pair: tuple[str, str] | None
     finished: tuple[str, ...]
@@ -81,11 +82,13 @@ class Follower:
         crew = self.crew
         completed = crew.aborted is None and len(self.finished) == len(crew.members)
         if completed:
-            outcome = "landed"
+            outcome = FlightOutcome.LANDED
         elif timed_out:
-            outcome = "timeout"
+            outcome = FlightOutcome.TIMEOUT
+        elif crew.aborted is not None:
+            outcome = FlightOutcome.ABORTED
         else:
-            outcome = "aborted" if crew.aborted is not None else "ended"
+            outcome = FlightOutcome.ENDED
         closest = crew.separation.closest if crew.separation else None
         pair = closest.pair if closest else None
         crew.bus.publish(FlightEnded(completed, self.min_separation_m, pair, outcome))

@@ -19,7 +19,7 @@ from collections.abc import Awaitable, Callable, Iterable
 from typing import Any
 
 from gcs.fleet.crew import FleetSettings
-from gcs.fleet.events import FleetEvent, Progress
+from gcs.fleet.events import FleetEvent, FlightOutcome, Progress
 from gcs.fleet.fleet import Fleet
 from gcs.fleet.outcome import VehicleOutcome
 from gcs.fleet.vehicle_limits import read_limits
@@ -244,11 +244,11 @@ class FlightService:
             log.exception("flight %s: the runner failed", fid)
             await self.to_interrupted(fid, f"the ground station failed: {exc!r}")
             return
-        if report.outcome == "landed":
+        if report.outcome == FlightOutcome.LANDED:
             await self.book.transition(fid, F.LANDED)
-        elif report.outcome == "ended":
+        elif report.outcome == FlightOutcome.ENDED:
             await self.book.transition(fid, F.ENDED, f"withdrawn: {sorted(report.withdrawn)}")
-        elif report.outcome == "timeout":
+        elif report.outcome == FlightOutcome.TIMEOUT:
             await self.to_interrupted(fid, "the flight exceeded its time bound")
         await self.retire_when_down(fid)
 
