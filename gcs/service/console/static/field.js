@@ -116,11 +116,11 @@ export class FieldMap {
       let marker = this.parked.get(v.id);
       if (!marker) {
         const html = `<div class="parked-vehicle" data-vehicle="${escape(v.id)}">`
-          + '<svg viewBox="-8 -8 16 16" width="16" height="16" aria-hidden="true"><circle r="6" fill="#20262e" stroke="#fff" stroke-width="2"/></svg>'
+          + '<svg viewBox="-6 -6 12 12" width="12" height="12" aria-hidden="true"><circle r="4.5" fill="#20262e" stroke="#fff" stroke-width="1.5"/></svg>'
           + `<span class="vehicle-label">${escape(v.name ?? v.id)}</span></div>`;
-        marker = L.marker([v.lat, v.lon], {
-          icon: L.divIcon({ className: "parked-icon", html, iconSize: [16, 16], iconAnchor: [8, 8] }),
-          interactive: false, keyboard: false, zIndexOffset: 500,
+        marker = L.marker([v.lat, v.lon], { // under the starts and goals drawn on it
+          icon: L.divIcon({ className: "parked-icon", html, iconSize: [12, 12], iconAnchor: [6, 6] }),
+          interactive: false, keyboard: false, zIndexOffset: -1000,
         }).addTo(this.layers.parked);
         this.parked.set(v.id, marker);
       }
