@@ -2,10 +2,10 @@
 against a real `mvo-gcs serve` with three mock vehicles near ArduPilot SITL's home: the
 map opens on the vehicles; the operator draws the area and a no-fly zone by clicking on
 the map, starts one UAV where a vehicle is and places the other's start and goals, is
-told which feature a refused file got wrong, derives the grid, plans, and sees both
-paths go round the zone. The plan is checked in metres from the API's
-`trajectories_wgs84` (tests/geographic.py, never the grid), and on the screen from the
-paths the page drew.
+told which feature a refused file got wrong, derives the grid, plans, sees both paths
+go round the zone, and flies them (both land at their goals). The plan is checked in
+metres from the API's `trajectories_wgs84` (tests/geographic.py, never the grid), and on
+the screen from the paths the page drew.
 
 Every wait is for a condition with a generous bound; nothing sleeps to let things
 settle. A browser console error fails the test (the refused file's 422 aside).
@@ -40,13 +40,16 @@ from tests.service_process import TOKEN, ServiceProcess
 pytestmark = NEEDS_CHROMIUM
 pytest.importorskip("playwright.sync_api", reason="playwright is not installed")
 
-# Metres east and north of BASE.
-VEHICLES = {1: (40.0, 100.0), 2: (40.0, 160.0), 3: (260.0, 40.0)}
-AREA = [(0.0, 0.0), (300.0, 0.0), (300.0, 200.0), (0.0, 200.0)]
+# Metres east and north of BASE. The area is 298 m x 198 m, so that clicks a metre off
+# still make a grid of 30 x 20 cells of 10 m. Cell (0, 0) has its south-west corner at the
+# area's: the vehicles stand at cells' centres, as a flight wants a vehicle within 3 m of
+# its planned start (a start is its cell's centre).
+VEHICLES = {1: (46.0, 106.0), 2: (46.0, 166.0), 3: (256.0, 46.0)}
+AREA = [(1.0, 1.0), (299.0, 1.0), (299.0, 199.0), (1.0, 199.0)]
 ZONE = [(120.0, 50.0), (180.0, 50.0), (180.0, 150.0), (120.0, 150.0)]
 GOAL_IN_ZONE = (150.0, 100.0)
 GOALS = {"uav1": (260.0, 100.0), "uav2": (260.0, 40.0)}
-START_UAV2 = (40.0, 160.0)
+START_UAV2 = VEHICLES[2]
 NAMES = {1: "alpha", 2: "bravo", 3: "charlie"}
 KML = "application/vnd.google-earth.kml+xml"
 CLICK_M = 3.0  # a click lands within a pixel or two of where it was aimed (~0.5 m each)
@@ -194,7 +197,8 @@ def test_an_operator_draws_an_area_and_a_zone_and_the_paths_go_round_it(
         stored = client.get(f"/scenarios/{scenario_id}").json()
         grid = stored["scenario"]
         assert page.locator("path.obstacle").count() == len(grid["obstacles"]) > 0
-        assert "cells blocked" in page.inner_text("#geo-status")
+        assert (grid["grid"]["width"], grid["grid"]["height"]) == (30, 20)
+        assert "grid 30\u00d720 of 10 m" in page.inner_text("#geo-status")
 
         # The file the page posted is what was drawn, in coordinates.
         features = stored["geographic"]["features"]
@@ -245,6 +249,29 @@ def test_an_operator_draws_an_area_and_a_zone_and_the_paths_go_round_it(
         assert page.input_value("#binding-table select[data-uav='uav1']") == ids[1]
         b.js("() => document.querySelector('#area-section').scrollIntoView()")
         b.shot(shots, "console-area.png")
+
+        # Fly it as any plan: uav1 on alpha (it starts there), uav2 on bravo; each lands
+        # at its goal, drawn there.
+        assert page.input_value("#binding-table select[data-uav='uav2']") == ids[2]
+        b.wait_js(
+            "() => document.querySelectorAll('#vehicle-table tr[data-online=true]').length === 3",
+            60,
+        )
+        page.click("#upload-btn")
+        b.wait_js(
+            "() => ['uploaded', 'upload_failed']"
+            ".includes(document.querySelector('#flight-state').textContent)",
+            120,
+        )
+        assert page.inner_text("#flight-state") == "uploaded", page.inner_text("#upload-results")
+        page.click("#start-btn")
+        b.wait_js("() => document.querySelectorAll('.vehicle').length === 2", 60)
+        b.wait_js("() => document.querySelector('#flight-state').textContent === 'landed'", 180)
+        for uav, goal in GOALS.items():
+            drawn = page.locator(f".vehicle[data-uav='{uav}']")
+            lat, lon = (float(drawn.get_attribute(f"data-{k}")) for k in ("lat", "lon"))
+            at = to_metres(np.array(lat), np.array(lon), *BASE)[0]
+            assert np.hypot(*(at - np.array(goal))) < cell, (uav, at)
 
     unexpected = [m for m in b.errors if "status of 422" not in m]
     assert not unexpected, unexpected
