@@ -135,33 +135,102 @@ def cell_conflicts(
     blocked: NDArray[np.bool_],
     kind: ConflictKind = "obstacle",
 ) -> list[Conflict]:
-    """Every blocked cell (indexed [x, y]) whose square the UAV's disc enters."""
-    hits: dict[Cell, Conflict] = {}
+    """Every blocked cell (indexed [x, y]) whose square the UAV's disc enters.
+
+    All legs at once: every blocked cell near the flight's bounding box is paired with
+    every leg whose widened box holds it, and the pairs are measured in one vectorised
+    pass; a cell's conflict is its closest approach over the legs (the earliest leg on
+    a tie), the cells in order of the leg that first comes near them, then x, then y."""
     pts, ts = trajectory.xy, trajectory.times
-    segments = [(0, 0)] if len(pts) == 1 else [(k, k + 1) for k in range(len(pts) - 1)]
-    # A hover after a leg stays where the leg ended: nothing the leg did not already see.
-    moved = np.any(pts[1:] != pts[:-1], axis=1) if len(pts) > 1 else np.ones(0, dtype=bool)
-    segments = [(k0, k1) for k0, k1 in segments if k0 == 0 or moved[k0]]
-    for k0, k1 in segments:
-        cells = _cells_near(pts[k0], pts[k1], radius, blocked)
-        if not len(cells):
+    if len(pts) == 1:
+        k0 = k1 = np.zeros(1, dtype=np.intp)
+    else:
+        # A hover after a leg stays where the leg ended: nothing the leg did not see.
+        moved = np.any(pts[1:] != pts[:-1], axis=1)
+        moved[0] = True
+        k0 = np.flatnonzero(moved)
+        k1 = k0 + 1
+    reach = radius + 0.5
+    a, b = pts[k0], pts[k1]
+    lo = np.maximum(np.floor(np.minimum(a, b) - reach).astype(int), 0)
+    hi = np.minimum(np.ceil(np.maximum(a, b) + reach).astype(int), np.array(blocked.shape) - 1)
+    box_lo, box_hi = lo.min(axis=0), hi.max(axis=0)
+    if np.any(box_lo > box_hi):
+        return []
+    window = blocked[box_lo[0] : box_hi[0] + 1, box_lo[1] : box_hi[1] + 1]
+    cells = np.argwhere(window) + box_lo  # in x, then y order
+    if not len(cells):
+        return []
+    inside = (
+        (cells[None, :, 0] >= lo[:, None, 0])
+        & (cells[None, :, 0] <= hi[:, None, 0])
+        & (cells[None, :, 1] >= lo[:, None, 1])
+        & (cells[None, :, 1] <= hi[:, None, 1])
+    )
+    leg, cell = np.nonzero(inside)  # pairs by leg, then by the cell's order
+    if not len(leg):
+        return []
+    dist, tau = _pairs_square_distance(a[leg], b[leg], cells[cell])
+    close = np.flatnonzero(dist < radius)
+    hits: dict[Cell, Conflict] = {}
+    for k in close.tolist():
+        key = (int(cells[cell[k], 0]), int(cells[cell[k], 1]))
+        d = float(dist[k])
+        if key in hits and not d < hits[key].separation:
             continue
-        dist, tau = _segment_square_distance(pts[k0], pts[k1], cells)
-        for (cx, cy), d, u in zip(cells, dist, tau, strict=True):
-            cell = (int(cx), int(cy))
-            if d < radius and (cell not in hits or d < hits[cell].separation):
-                where = pts[k0] + u * (pts[k1] - pts[k0])
-                when = ts[k0] + u * (ts[k1] - ts[k0])
-                hits[cell] = Conflict(
-                    kind,
-                    (uav,),
-                    float(when),
-                    (float(where[0]), float(where[1])),
-                    float(d),
-                    radius,
-                    cell,
-                )
+        s0, s1, u = int(k0[leg[k]]), int(k1[leg[k]]), tau[k]
+        where = pts[s0] + u * (pts[s1] - pts[s0])
+        when = ts[s0] + u * (ts[s1] - ts[s0])
+        hits[key] = Conflict(
+            kind, (uav,), float(when), (float(where[0]), float(where[1])), d, radius, key
+        )
     return list(hits.values())
+
+
+def _pairs_square_distance(
+    p0: NDArray[np.float64], p1: NDArray[np.float64], cells: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """`_segment_square_distance` for many (segment, cell) pairs at once: row k is the
+    segment p0[k]-p1[k] against cells[k]."""
+    centre = cells.astype(float)
+    d = p1 - p0
+    n = len(cells)
+    entry, exit_ = np.zeros(n), np.ones(n)
+    for axis in range(2):
+        lo, hi = centre[:, axis] - 0.5, centre[:, axis] + 0.5
+        da, pa = d[:, axis], p0[:, axis]
+        flat = np.abs(da) < 1e-15
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (lo - pa) / da, (hi - pa) / da
+        outside = flat & ((pa < lo) | (pa > hi))
+        entry = np.where(flat, np.where(outside, 2.0, entry), np.maximum(entry, np.minimum(t1, t2)))
+        exit_ = np.where(flat, exit_, np.minimum(exit_, np.maximum(t1, t2)))
+    crosses = entry <= exit_
+
+    def point_to_square(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        off = np.maximum(np.abs(p - centre) - 0.5, 0.0)
+        return np.hypot(off[..., 0], off[..., 1])
+
+    candidates = [point_to_square(p0), point_to_square(p1)]
+    taus = [np.zeros(n), np.ones(n)]
+    length2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
+    moving = length2 > 0
+    safe2 = np.where(moving, length2, 1.0)
+    for sx in (-0.5, 0.5):
+        for sy in (-0.5, 0.5):
+            corner = centre + np.array([sx, sy])
+            rel = corner - p0
+            u = np.where(
+                moving, np.clip((rel[:, 0] * d[:, 0] + rel[:, 1] * d[:, 1]) / safe2, 0, 1), 0.0
+            )
+            candidates.append(np.hypot(*(p0 + u[:, None] * d - corner).T))
+            taus.append(u)
+    stack, tau_stack = np.stack(candidates), np.stack(taus)
+    best = np.argmin(stack, axis=0)
+    cols = np.arange(n)
+    dist = np.where(crosses, 0.0, stack[best, cols])
+    tau = np.where(crosses, np.clip(entry, 0, 1), tau_stack[best, cols])
+    return dist, tau
 
 
 def segment_clearance(
