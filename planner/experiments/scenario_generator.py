@@ -165,3 +165,64 @@ def gap_swap_scenario(seed: int, *, size: int = 10, uavs: int = 6, gap: int = 2)
             "non_uav_objects": [],
         }
     )
+
+
+def short_trips_scenario(
+    seed: int,
+    *,
+    size: int = 60,
+    uavs: int = 100,
+    obstacle_share: float = 0.12,
+    trip: int = 8,
+    min_gap: float = 1.5,
+) -> Scenario:
+    """Dense short trips: starts spread over the grid (at least `min_gap` apart), each goal
+    a free cell at most `trip` cells (Chebyshev) from its start and at least `min_gap` from
+    every other start and goal; retries with the same generator until valid."""
+    rng = np.random.default_rng(seed)
+    for _ in range(MAX_TRIES):
+        data = _draw_short(rng, size, uavs, obstacle_share, trip, min_gap)
+        if data is None:
+            continue
+        try:
+            return load_scenario({"name": f"short-trips-{seed}", **data}, max_uavs=uavs)
+        except ValidationError:
+            continue
+    raise RuntimeError(f"no valid short-trips scenario for seed {seed} in {MAX_TRIES} tries")
+
+
+def _draw_short(
+    rng: np.random.Generator, size: int, uavs: int, obstacle_share: float, trip: int, gap: float
+) -> dict | None:
+    blocked = rng.random((size, size)) < obstacle_share
+    free = np.argwhere(~blocked)
+    order = free[rng.permutation(len(free))]
+    ends: list[np.ndarray] = []
+    starts: list[np.ndarray] = []
+    goals: list[np.ndarray] = []
+    for cell in order:
+        if len(starts) == uavs:
+            break
+        if ends and np.min(np.hypot(*(np.array(ends) - cell).T)) < gap:
+            continue
+        lo, hi = np.maximum(cell - trip, 0), np.minimum(cell + trip, size - 1)
+        box = np.argwhere(~blocked[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]) + lo
+        box = box[rng.permutation(len(box))]
+        taken = np.array([*ends, cell])
+        for goal in box:
+            if np.min(np.hypot(*(taken - goal).T)) >= gap:
+                starts.append(cell)
+                goals.append(goal)
+                ends += [cell, goal]
+                break
+    if len(starts) < uavs:
+        return None
+    return {
+        "grid": {"width": size, "height": size, "cell_size_m": 10.0},
+        "uavs": [
+            {"id": f"uav{k + 1}", "start": list(map(int, s)), "goal": list(map(int, g))}
+            for k, (s, g) in enumerate(zip(starts, goals, strict=True))
+        ],
+        "obstacles": [list(map(int, c)) for c in np.argwhere(blocked)],
+        "non_uav_objects": [],
+    }
