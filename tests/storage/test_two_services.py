@@ -97,6 +97,32 @@ def test_the_survivor_takes_over_a_killed_services_flight(
     assert not [p for p in b.problems() if "Traceback" in p or '" 500' in p]
 
 
+def test_an_abort_under_way_is_carried_on_by_the_survivor(
+    tmp_path: Path, database_url: str
+) -> None:
+    """The controller dies while its abort is under way: the survivor takes the
+    `aborting` flight over, sends the abort again to every vehicle not yet down, and
+    closes the flight once they all are."""
+    with (
+        fleet_at_starts(load_case("case-6"), speedup=SPEEDUP).running() as sim,
+        pair(tmp_path, database_url) as (a, b),
+        a.client() as on_a,
+        b.client() as on_b,
+    ):
+        flight = Flight.make(on_a, sim, "case-6")
+        flight.fly()
+        aborted = flight.post("abort", mode="land")
+        assert aborted.status_code == 200, aborted.text
+        a.kill()
+        wait_for(lambda: taken_over_by(on_b, flight.id, "b"), 60, "b to take the aborting flight")
+        taken = taken_over_by(on_b, flight.id, "b")
+        assert taken is not None and taken["data"]["state"] == "aborting", taken
+        flight.client = on_b
+        wait_for(lambda: flight.modes() == {"LAND"}, 30, "every vehicle in LAND")
+        flight.wait_state("aborted")
+        assert not flight.airborne()
+
+
 def test_a_job_is_run_by_the_service_that_took_it(tmp_path: Path, database_url: str) -> None:
     """Plans asked of both services at once: each job is claimed once, by one of them."""
     scenario = load_case("case-1").model_dump(mode="json")

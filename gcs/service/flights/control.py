@@ -11,7 +11,8 @@ ports or a MAVLink router allow), records a `TakenOver` event, and keeps the ope
 control. Nothing is uploaded: the vehicles fly on the missions they have. The passing
 order was kept by the dead service's follower, which is gone; so a flight taken over in
 the air is `interrupted`, as after a restart, and watched until every vehicle is down:
-abort, hold, land and return work on it from the survivor.
+abort, hold, land and return work on it from the survivor. An `aborting` flight stays so,
+its abort sent again to every vehicle not yet down.
 
 A service that finds a flight it thought its own held by another (it was frozen longer
 than a lease) lets it go at once, commanding nothing. A request for a flight that another
@@ -27,6 +28,7 @@ import socket
 import uuid
 from collections.abc import Iterable
 
+from gcs.fleet.crew import Fallback
 from gcs.mavlink.connection import Signing
 from gcs.service.flights.operator import OperatorCommands
 from gcs.service.flights.service import FlightService
@@ -46,6 +48,12 @@ TAKEN_IN_THE_AIR = frozenset({F.UPLOADING, F.STARTING, F.FLYING, F.PAUSED})
 
 class ControlledElsewhere(StateConflict):
     """The flight is controlled by another live service; answered 409, naming it."""
+
+
+def _abort_of(row: FlightRow) -> Fallback | None:
+    """The operator's abort an `aborting` flight carries out ("land by the operator")."""
+    word = (row.note or "").split(" ", 1)[0]
+    return Fallback(word) if word in (Fallback.LAND.value, Fallback.RTL.value) else None
 
 
 def holder_for(settings: Settings) -> Holder:
@@ -179,7 +187,10 @@ class FlightControl:
                 f"{note}: nobody keeps the passing order now; the vehicles fly the missions "
                 "they have. Hold, land or abort them",
             )
-        if state in AIRBORNE or state in TAKEN_IN_THE_AIR:
+        fallback = _abort_of(row) if state == F.ABORTING else None
+        if fallback is not None:  # the dead service may not have reached every vehicle
+            self.operator.owe_abort(row.id, fallback, row.bindings.values())
+        elif state in AIRBORNE or state in TAKEN_IN_THE_AIR:
             self.operator.watch_until_down(row.id)
         return True
 

@@ -188,6 +188,12 @@ class OperatorCommands:
         if watcher is None or watcher.done():
             self._watchers[flight_id] = asyncio.ensure_future(self._until_down(flight_id))
 
+    def owe_abort(self, flight_id: str, fallback: Fallback, vehicle_ids: Iterable[str]) -> None:
+        """Send the abort again to each of `vehicle_ids` not yet down, as soon as it can be
+        (a flight taken over from a service that died while aborting it)."""
+        self._owed[flight_id] = (fallback, set(vehicle_ids))
+        self.watch_until_down(flight_id)
+
     def stop_watching(self, flight_id: str) -> None:
         """Another service holds the flight now: it watches it, not this one."""
         watcher = self._watchers.pop(flight_id, None)
