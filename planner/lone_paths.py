@@ -22,6 +22,8 @@ from planner.trajectory import Trajectory, merge_collinear
 Array = NDArray[np.float64]
 Route = list[tuple[int, int]]
 WINDOW = 5.0  # cells of lone path searched on either side of where a UAV hovers
+STORED_SHIFT = 1e-6  # cells: more than a stored plan's rounding (DIGITS) moves a point, so
+# that a corner tightened until it just touches a blocked cell stays clear once rounded
 
 
 def routes(
@@ -75,7 +77,8 @@ def shaped(
     for u in scenario.uavs:
         cells = merge_collinear(np.array(found[u.id], dtype=float))
         if not limit.expired():
-            cells = tighten(pull_string(cells, u.radius, blocked), u.radius, blocked)
+            pulled = pull_string(cells, u.radius, blocked)
+            cells = tighten(pulled, u.radius + STORED_SHIFT, blocked)
         geometry[u.id] = cells
     return geometry
 
