@@ -50,7 +50,7 @@ export class AreaEditor {
     this.sketch = null; // {kind: "area" | "no-fly", points: [[lat, lon]]}
     this.posted = []; // what each index of the last posted file was, for a 422's `feature`
     this.refused = null;
-    this.shown = false;
+    this.dirty = false; // drawn or changed since the grid was derived (or nothing loaded)
   }
 
   tool() { return document.querySelector('input[name="geo-tool"]:checked').value; }
@@ -269,6 +269,7 @@ export class AreaEditor {
     if (doc?.fileType === "Plan") { this.refuse(PLAN_FILES); return; }
     if (doc?.type !== "FeatureCollection") { this.refuse(`${file.name}: not a GeoJSON FeatureCollection`); return; }
     this.load(doc);
+    this.dirty = true; // not derived yet
     this.field.fitTo(this.points(), 50);
     this.hooks.say(`${file.name}: ${doc.features?.length ?? 0} features; Derive the grid to check and store it`);
   }
@@ -276,6 +277,7 @@ export class AreaEditor {
   // --- the panel -------------------------------------------------------------------------
 
   edited() {
+    this.dirty = true;
     this.clearRefusal();
     $("geo-status").textContent = "edited: Derive the grid";
     this.render();
@@ -289,6 +291,7 @@ export class AreaEditor {
     $("geo-status").textContent = "";
     this.render();
     this.field.setGeo(null);
+    this.dirty = false;
   }
 
   whereIs(vehicleId) {
@@ -312,7 +315,6 @@ export class AreaEditor {
   }
 
   render() {
-    this.shown = true;
     const { features, refs } = this.features();
     const order = (uav) => Math.max(0, this.uavs.findIndex((u) => u.id === uav));
     this.field.setGeo({ features }, order, (v) => this.whereIs(v), (i) => this.isRefused(refs[i]));

@@ -293,6 +293,7 @@ function planRequest() {
 
 async function requestPlan() {
   if (!S.scenario) { say("load or build a scenario first", "error"); return; }
+  if (area.dirty) { say("the area on the map changed: Derive the grid first (or Clear it)", "error"); return; }
   clearErrors($("plan-form"));
   if (!S.scenarioId || S.dirty) {
     if (!(await storeScenario())) return;
