@@ -63,7 +63,7 @@ def test_the_survivor_takes_over_a_killed_services_flight(
         assert "AUTO" in flight.modes()  # they fly their missions on, unfollowed
         flight.client = on_b
         note = on_b.get(f"/flights/{flight.id}").json()["note"]
-        assert note.startswith("taken over by service b at " + b.url + " from a"), note
+        assert note.startswith("taken over by service b at " + b.url + " from a:"), note
 
         wait_for(
             lambda: all(

@@ -80,6 +80,7 @@ class FlightControl:
         self.renew_s = min(renew_s, leases.lease_s / 2)
         self._task: asyncio.Task[None] | None = None
         self._held: set[str] = set()  # as the last renewal or claim found: no query needed
+        self._fresh_until = 0.0  # loop time until which the last renewal's leases hold
         self.taken_over = 0
 
     @property
@@ -112,8 +113,10 @@ class FlightControl:
 
     async def tick(self) -> None:
         """Renew, let go of what another took, take over what a dead one left."""
+        asked = asyncio.get_running_loop().time()
         renewal = await self.leases.renew()
         self._held = set(renewal.flights)
+        self._fresh_until = asked + self.leases.lease_s
         for flight_id in sorted(set(self.flights.book.active) - renewal.flights):
             await self._let_go(flight_id)
         await self.leases.interrupt_orphan_jobs()
@@ -126,8 +129,8 @@ class FlightControl:
     async def require(self, flight_id: str) -> None:
         """409 unless this service may act on the flight: nobody's (not uploaded yet), its
         own, or its holder's lease has run out (this service is taking it over)."""
-        if flight_id in self._held:
-            return  # an abort must not wait for storage
+        if flight_id in self._held and asyncio.get_running_loop().time() < self._fresh_until:
+            return  # held under a lease still running: an abort must not wait for storage
         holder, live = await self.leases.holder_of(flight_id)
         if holder is None or holder.id == self.holder.id:
             return
@@ -160,6 +163,7 @@ class FlightControl:
     async def take_over(self, row: FlightRow) -> bool:
         """Claim a dead service's open flight, re-attach its vehicles and keep the operator
         in control of it; False if another service claimed it first."""
+        previous = row.owner_id or "nobody"
         if not await self.leases.claim_flight(row.id):
             return False
         self._held.add(row.id)
@@ -167,16 +171,14 @@ class FlightControl:
         await self.attach(row.bindings.values())
         row = await self.flights.book.row(row.id)
         state = FlightState(row.state)
-        note = (
-            f"taken over by service {self.holder.id} at {self.holder.url} from "
-            f"{row.owner_id if row.owner_id != self.holder.id else 'a dead service'}"
-        )
+        note = f"taken over by service {self.holder.id} at {self.holder.url} from {previous}"
         message = {
             "type": "event",
             "kind": "TakenOver",
             "by": self.holder.id,
             "url": self.holder.url,
             "state": state.value,
+            "from": previous,
         }
         self.flights.book.events.record(row.id, "TakenOver", message)
         self.flights.book.tell(row.id, message)
