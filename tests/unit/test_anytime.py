@@ -9,7 +9,12 @@ from planner import budget as budget_clock
 from planner.budget import Budget
 from planner.cases import load_case
 from planner.conflict_table import ConflictTable
-from planner.experiments.scenario_generator import crossing_scenario, random_scenario
+from planner.experiments.scenario_generator import (
+    crossing_scenario,
+    gap_swap_scenario,
+    random_scenario,
+    short_trips_scenario,
+)
 from planner.pipeline import PlannerSettings, PlanProgress, plan
 from planner.run_stop import RunStop
 from planner.safety import check_plan, uav_conflicts
@@ -233,3 +238,21 @@ def test_the_fleet_benchmark_writes_its_tables(tmp_path, monkeypatch) -> None:
     assert summary.count("|") == 12 and "| 0.25 |" in summary  # the issue's target column
     rows = (tmp_path / "fleet.csv").read_text().splitlines()
     assert len(rows) == 1 + 2 * 3  # header, then 2 seeds x 3 planners
+
+
+@pytest.mark.parametrize(
+    "build",
+    [
+        *(lambda s=s: gap_swap_scenario(s) for s in range(4)),
+        *(lambda s=s: crossing_scenario(s, size=41, uavs=17, objects=0) for s in range(2)),
+        lambda: short_trips_scenario(2, size=30, uavs=40, obstacle_share=0.12),
+    ],
+)
+def test_the_safe_start_alone_plans_small_dense_fleets(build) -> None:
+    """Completeness where it is cheap to see: swaps through a corridor, dense crossings and
+    short trips are made safe by the safe start alone (no optimizer repair, no budget),
+    and the exact check agrees."""
+    scenario = build()
+    result = plan(scenario, PlannerSettings(time_budget_s=None, improve_rounds=0))
+    assert result.feasible and _safe(scenario, result)
+    assert not any("uav conflict" in u.replanned for u in result.uavs)

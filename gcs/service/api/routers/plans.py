@@ -107,6 +107,8 @@ async def request_plan(
         iterations=request.iterations,
         time_budget_s=request.time_budget_s,
         patience=request.patience,
+        # The safe start ignores the time budget; a worker is still never held longer.
+        safe_start_limit_s=settings.max_plan_seconds,
     )
     wait = settings.inline_plan_wait_s if request.wait_s is None else request.wait_s
     job = await planning.request(scenario_id, planner_settings, wait, request.clearance_m)
