@@ -62,6 +62,9 @@ RALLY_FRAMES = {
 ALT_MAX, CIRCLE, POLYGON = 1, 2, 4
 """AC_FENCE_TYPE bits."""
 NAMES = {ALT_MAX: "Max Alt", CIRCLE: "Circle", POLYGON: "Polygon"}
+MANUAL_RECOVERY_S = 10.0
+"""AC_FENCE_MANUAL_RECOVERY_TIME_MIN: after a mode change during a breach, new breaches
+are recorded but not acted on for this long ("Manual recovery started")."""
 GIVE_UP_DISTANCE_M = 100.0
 """AC_FENCE_GIVE_UP_DISTANCE: further outside than this, the action is LAND."""
 ALT_MAX_BACKUP_M = 20.0
@@ -269,10 +272,12 @@ class FenceMonitor:
         home: tuple[float, float],
         limits: tuple[float, float],
         uptime_ms: int,
+        recovering: bool = False,
     ) -> Breach | None:
         """Check the enabled fences at `position` (east, north, up above home); `limits`
-        are FENCE_ALT_MAX and FENCE_RADIUS. Returns the new breaches, if any; breaches
-        no longer true are cleared."""
+        are FENCE_ALT_MAX and FENCE_RADIUS. Returns the new breaches, if any (none while
+        `recovering`: they are recorded, not returned); breaches no longer true are
+        cleared."""
         east, north, up = position
         new = 0
         alt_max, radius = limits
@@ -313,7 +318,7 @@ class FenceMonitor:
         self.breach_count = min(self.breach_count + 1, 0xFFFF)
         self.breach_time_ms = uptime_ms
         distance = max(self._distances.get(bit, 0.0) for bit in NAMES if new & bit)
-        return Breach(new, distance)
+        return None if recovering else Breach(new, distance)
 
     def _clear(self, bit: int) -> None:
         self.breaches &= ~bit

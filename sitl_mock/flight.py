@@ -63,6 +63,7 @@ class FlightController:
         self._say = say
         self._to_local = to_local
         self.fence = FenceMonitor()
+        self._recovery_until = -math.inf
         self._zones = Zones()
         self._zones_version = -1
         self._boot_time = 0.0
@@ -355,6 +356,7 @@ class FlightController:
             (self.home.east, self.home.north),
             (self.params.get("FENCE_ALT_MAX"), self.params.get("FENCE_RADIUS")),
             int(self.uptime(now) * 1000),
+            recovering=now < self._recovery_until,
         )
         if breach is None:
             if had and not self.fence.breaches and self._airborne:
@@ -387,6 +389,7 @@ class FlightController:
         """Power-cycle: disarmed on the ground at home, estimate not ready again."""
         self._reset_state()
         self.fence.reset()
+        self._recovery_until = -math.inf
         self._boot_time = now
         self._cruise_override = None
         self.body.place(self.home.east, self.home.north, 0.0)
@@ -420,6 +423,8 @@ class FlightController:
     def _enter(self, mode: FlightMode, now: float, takeoff_alt: float | None = None) -> None:
         self.mode = mode
         self._manoeuvre = None
+        if self.fence.breaches and self.flavour.needs_mission_start:
+            self._manual_recovery(now)
         if mode != FlightMode.AUTO:
             self.runner.stop()
         if mode == FlightMode.AUTO:
@@ -453,6 +458,13 @@ class FlightController:
             self._run(Stop(brake=True), now)
         else:
             self._run(Hold(), now)
+
+    def _manual_recovery(self, now: float) -> None:
+        """Copter::set_mode during a breach (any mode change, the fence's own included):
+        AC_Fence::manual_recovery_start ignores new breaches for 10 s."""
+        if self.params.get("FENCE_ACTION") != 0:
+            self._recovery_until = now + fence.MANUAL_RECOVERY_S
+            self._say(mavlink.MAV_SEVERITY_INFO, "Manual recovery started")
 
     def _return_point(self) -> tuple[float, float]:
         """ArduCopter's RTL target (AP_Rally::calc_best_rally_or_home_location): the

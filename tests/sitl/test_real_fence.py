@@ -129,6 +129,8 @@ async def fly_across(link: VehicleLink, action: int, mode: str) -> None:
     statuses = [m for m in heard_now if m.get_type() == "FENCE_STATUS" and m.breach_status]
     assert link.state.mode == mode, (link.state.mode, texts)
     assert any("Polygon fence breached" in t for t in texts), texts
+    after = texts[texts.index("Polygon fence breached") :]
+    assert "Manual recovery started" in after, texts  # the mode change during a breach
     assert FENCE_HALF_M - 1.0 <= east <= FENCE_HALF_M + AT_FENCE_M, east
     print(f"texts: {texts}")
     print(f"FENCE_STATUS with a breach: {statuses[-1] if statuses else None}")
