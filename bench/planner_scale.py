@@ -27,6 +27,7 @@ shared (2 cores).
 from __future__ import annotations
 
 import argparse
+import csv
 import dataclasses
 import functools
 import os
@@ -164,6 +165,31 @@ def memory_run(size: int, uavs: int, budget: float) -> tuple[float, float, bool]
         tracemalloc.stop()
 
 
+def read_csv(path: Path) -> list[Row]:
+    """Rows as `write_csv` wrote them."""
+
+    def number(text: str) -> float | None:
+        return float(text) if text else None
+
+    with path.open(newline="") as handle:
+        return [
+            Row(
+                r["family"],
+                int(r["seed"]),
+                r["planner"],
+                r["feasible"] == "True",
+                number(r["first_safe_s"]),
+                float(r["seconds"]),
+                number(r["length_ratio"]),
+                number(r["improvement"]),
+                r["stop_reason"],
+                r["note"],
+                r["marked"] == "True",
+            )
+            for r in csv.DictReader(handle)
+        ]
+
+
 def summary(rows: list[Row], families: list[Family]) -> list[str]:
     lines = [
         "| family | ours safe | ours median s to first safe (max) | ours median s (max) | "
@@ -185,8 +211,8 @@ def summary(rows: list[Row], families: list[Family]) -> list[str]:
             ok = [r for r in runs if r.feasible]
             ratio = [r.length_ratio for r in ok if r.length_ratio is not None]
             secs = [r.seconds for r in runs]
-            ok_secs = [r.seconds for r in ok]
-            medians[name] = statistics.median(secs if name == OURS else ok_secs) if secs else None
+            timed = secs if name == OURS else [r.seconds for r in ok]
+            medians[name] = statistics.median(timed) if timed else None
             if name == OURS:
                 worst = f" ({max(secs):.2f})" if secs else ""
                 worst_ratio = f" ({max(ratio):.3f})" if ratio else ""
@@ -226,18 +252,25 @@ def main() -> None:
     parser.add_argument("--no-curve", action="store_true")
     parser.add_argument("--no-memory", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("bench/results/planner_scale.md"))
+    parser.add_argument(
+        "--rows", type=Path, help="tables from these per-run rows (a CSV this wrote), not runs"
+    )
     args = parser.parse_args()
     wanted = [p.strip() for p in args.families.split(",") if p.strip()]
     families = [f for f in FAMILIES if not wanted or any(f.name.startswith(p) for p in wanted)]
     started, load_before = datetime.now(UTC), load()
     rows: list[Row] = []
     loads = []
-    for family in families:
-        before = load()
-        rows += run_family(family, args.seeds, args.budget, not args.no_pp)
-        loads.append(f"| {family.name} | {before:.2f} | {load():.2f} |")
     csv_path = args.out.with_suffix(".csv")
-    write_csv(rows, csv_path)
+    if args.rows:
+        rows = read_csv(args.rows)
+        csv_path = args.rows
+    else:
+        for family in families:
+            before = load()
+            rows += run_family(family, args.seeds, args.budget, not args.no_pp)
+            loads.append(f"| {family.name} | {before:.2f} | {load():.2f} |")
+        write_csv(rows, csv_path)
     lines = [
         "# The planner at a MAVLink network's scale, beside LaCAM\n",
         f"- Run {started:%Y-%m-%d %H:%M} UTC on {platform.processor() or platform.machine()}, "
@@ -258,11 +291,17 @@ def main() -> None:
         f"0..{args.seeds - 1}; for LaCAM and PP over their safe plans.\n",
         *summary(rows, families),
         "",
-        "Load average (1 minute) before and after each family:\n",
-        "| family | before | after |",
-        "|---|---:|---:|",
-        *loads,
-        "",
+        *(
+            [
+                "Load average (1 minute) before and after each family:\n",
+                "| family | before | after |",
+                "|---|---:|---:|",
+                *loads,
+                "",
+            ]
+            if loads
+            else []
+        ),
         f"Per-run rows: `{csv_path.name}`.",
         "",
     ]
