@@ -12,7 +12,7 @@ from .codec import mavlink
 from .fence import FenceMonitor, Zones
 from .flavour import Flavour
 from .kinematics import Body, NavLimits
-from .manoeuvres import TAKEOFF, Climb, Hold, Land, Manoeuvre, Stop, return_home
+from .manoeuvres import TAKEOFF, Climb, FlyTo, Hold, Land, Manoeuvre, Stop, return_home
 from .mission_runner import ItemPlacer, MissionEvents, MissionRunner, MissionState
 from .mission_store import MissionStore
 from .modes import ARDUCOPTER_NAMES, REQUIRES_POSITION, FlightMode
@@ -265,6 +265,26 @@ class FlightController:
             self._enter(FlightMode.TAKEOFF, now, takeoff_alt=alt)
         self._idle_since = None
         return ACCEPTED
+
+    def guided_target(self, lat: float, lon: float, alt: float, now: float) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT (a position, `alt` above home): ArduCopter flies
+        to it in GUIDED (a take-off under way included: the climb becomes the flight to
+        the point) and holds there; outside GUIDED, on the ground or disarmed it is
+        ignored, with no answer (the message has no ACK)."""
+        if not self.flavour.needs_mission_start or self.mode != FlightMode.GUIDED:
+            return
+        if not self.armed or not self._airborne:
+            return
+        east, north = self._to_local(lat, lon)
+        flying = self._manoeuvre
+        if isinstance(flying, FlyTo) and (flying.east, flying.north, flying.alt) == (
+            east,
+            north,
+            alt,
+        ):
+            return  # the same target again: the flight to it goes on
+        self._run(FlyTo(east, north, alt, radius=0.0, hold_s=math.inf), now)
+        self._idle_since = None
 
     def start_mission(self, now: float) -> int:
         """MISSION_START: AUTO, and (ArduCopter) permission to climb from the ground."""

@@ -37,6 +37,11 @@ __all__ = ["DEFAULT_HOME", "Vehicle", "VehicleConfig"]
 
 T = TypeVar("T")
 
+POSITION_IGNORED = (
+    mavlink.POSITION_TARGET_TYPEMASK_X_IGNORE
+    | mavlink.POSITION_TARGET_TYPEMASK_Y_IGNORE
+    | mavlink.POSITION_TARGET_TYPEMASK_Z_IGNORE
+)
 REBOOT_SILENCE_S = 1.0  # shorter than the BOOT status, so a ground station sees it
 
 Geodetic = Callable[[int], tuple[float, float]]
@@ -392,6 +397,13 @@ class Vehicle:
         self.flight.apply_limits()
         self.send(self.params.value_message(name))
 
+    def _on_position_target(self, msg: Message, sender: Sender, now: float) -> None:
+        if msg.coordinate_frame != mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT:
+            return  # the only frame the ground station sends
+        if msg.type_mask & POSITION_IGNORED:
+            return  # a velocity or acceleration target: not simulated
+        self.flight.guided_target(msg.lat_int / 1e7, msg.lon_int / 1e7, msg.alt, now)
+
     def _send_by_id(self, msg_id: int) -> None:
         if msg_id == mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION:
             self.send(messages.autopilot_version(self.sysid, self.flavour, self.config.board_id))
@@ -407,6 +419,7 @@ class Vehicle:
         "PARAM_REQUEST_LIST": _on_param_request_list,
         "PARAM_REQUEST_READ": _on_param_request_read,
         "PARAM_SET": _on_param_set,
+        "SET_POSITION_TARGET_GLOBAL_INT": _on_position_target,
     }
 
 

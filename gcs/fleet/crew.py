@@ -43,6 +43,10 @@ class FleetSettings:
     commands: CommandPolicy = field(default_factory=CommandPolicy)
     readiness: ReadinessPolicy = field(default_factory=ReadinessPolicy)
     start_tolerance_m: float = 3.0  # how far from its start a vehicle may be when it arms
+    # as it is; further, but inside its start cell, it flies to its start once airborne
+    # (ArduCopter; see gcs/fleet/launch.py), within start_hold_m and start_move_timeout_s
+    start_hold_m: float = 0.5
+    start_move_timeout_s: float = 60.0
     fence_action: int = 1  # ArduCopter's FENCE_ACTION for a flight with a geofence: RTL
     tick_s: float = 0.05  # seconds between looks at the fleet
     progress_every_s: float = 0.25  # seconds between Progress events
