@@ -23,7 +23,6 @@ import pytest
 from sitl_mock.virtual_time import VirtualTimeLoop
 from tests.inprocess.vehicles import SimulatedVehicles
 
-
 MEMORY = Path("/dev/shm")
 MEMORY_NEEDED = 4 * 2**30
 """Free bytes /dev/shm must have to be used (a container's default 64 MB would not do)."""
