@@ -276,6 +276,8 @@ class FlightController:
         if not self.armed or not self._airborne:
             return
         east, north = self._to_local(lat, lon)
+        if not self._within_fence(east, north, alt):
+            return  # ModeGuided::set_pos_NED_m refuses a destination the fence excludes
         flying = self._manoeuvre
         if isinstance(flying, FlyTo) and (flying.east, flying.north, flying.alt) == (
             east,
@@ -479,6 +481,18 @@ class FlightController:
         else:
             self._run(Hold(), now)
 
+    def _within_fence(self, east: float, north: float, alt: float) -> bool:
+        """AC_Fence::check_destination_within_fence, for the fences in force."""
+        types = self.fence_types()
+        if types & fence.ALT_MAX and alt > self.params.get("FENCE_ALT_MAX"):
+            return False
+        home = (self.home.east, self.home.north)
+        if types & fence.CIRCLE and math.dist((east, north), home) > self.params.get(
+            "FENCE_RADIUS"
+        ):
+            return False
+        return not (types & fence.POLYGON and self.zones().breach_distance(east, north) is not None)
+
     def _manual_recovery(self, now: float) -> None:
         """Copter::set_mode during a breach (any mode change, the fence's own included):
         AC_Fence::manual_recovery_start ignores new breaches for 10 s."""
@@ -494,14 +508,11 @@ class FlightController:
         home = (self.home.east, self.home.north)
         if not self.flavour.needs_mission_start:
             return home
-        types, zones = self.fence_types(), self.zones()
         best: tuple[float, float] | None = None
         for item in self.store.items(mavlink.MAV_MISSION_TYPE_RALLY):
             point = self._to_local(item.lat, item.lon)
-            if types & fence.POLYGON and zones.breach_distance(*point) is not None:
+            if not self._within_fence(*point, 0.0):
                 continue  # AP_Rally_Copter::is_valid: not outside the fence
-            if types & fence.CIRCLE and math.dist(point, home) > self.params.get("FENCE_RADIUS"):
-                continue
             if best is None or math.dist(point, here) < math.dist(best, here):
                 best = point
         if best is None or math.dist(best, here) > RALLY_LIMIT_M:

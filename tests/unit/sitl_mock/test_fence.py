@@ -18,6 +18,7 @@ from sitl_mock.fence import (
     stored_rally_item,
 )
 from sitl_mock.mission_item import MissionItem
+from tests.unit.sitl_mock.test_flight import airborne_in_guided, at, local, make
 
 SQUARE = np.array([(0.0, 0.0), (100.0, 0.0), (100.0, 100.0), (0.0, 100.0)])
 ZONES = Zones(
@@ -78,3 +79,33 @@ def test_a_rally_point_keeps_whole_metres_and_its_altitude_frame() -> None:
     kept = stored_rally_item(sent)
     assert (kept.frame, kept.z, kept.x, kept.y) == (3, 30.0, 1, 2)
     assert stored_rally_item(MissionItem(seq=0, frame=5, command=5100, z=1.5)).frame == 0
+
+
+def test_guided_refuses_a_target_outside_the_enabled_fence() -> None:
+    """ModeGuided::set_pos_NED_m: a destination check_destination_within_fence refuses is
+    not flown to (the fence as a 40 m square round home)."""
+    sim, flight = make()
+    corners = [at(e, n) for e, n in ((-40, -40), (40, -40), (40, 40), (-40, 40))]
+    fence = [
+        MissionItem(
+            seq=k,
+            frame=0,
+            command=mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+            param1=4.0,
+            x=c.x,
+            y=c.y,
+            mission_type=mavlink.MAV_MISSION_TYPE_FENCE,
+        )
+        for k, c in enumerate(corners)
+    ]
+    sim.load_mission(1, fence, mavlink.MAV_MISSION_TYPE_FENCE)
+    for name, value in (("FENCE_TYPE", 4), ("FENCE_ENABLE", 1)):
+        sim.set_param(1, name, value)
+    airborne_in_guided(sim, flight, alt=10.0)
+    outside, inside = at(60, 0), at(20, 0)
+    flight.guided_target(outside.lat, outside.lon, 10.0, sim.sim_time)
+    sim.advance(10.0)
+    assert np.hypot(*local(sim)) < 0.5 and not flight.fence.breaches
+    flight.guided_target(inside.lat, inside.lon, 10.0, sim.sim_time)
+    sim.advance(15.0)
+    assert local(sim)[0] == pytest.approx(20.0, abs=0.5)
