@@ -4,10 +4,13 @@ them, enables the fence with a FENCE_ACTION, and flies a mission whose waypoint 
 beyond the fence: ArduCopter itself says "Polygon fence breached", reports the breach in
 FENCE_STATUS and switches to the configured action's mode near the fence, whatever the
 mission says. The same checks the mock's enforcement is held to (tests/integration/
-test_geofence.py). Run with `ARDUPILOT_SITL=/path/to/arducopter`; skipped otherwise."""
+test_geofence.py). And the service flies a geographic scenario with its fence enabled
+to the end, without a breach. Run with `ARDUPILOT_SITL=/path/to/arducopter`; skipped
+otherwise."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pymap3d
@@ -28,7 +31,12 @@ from gcs.mission.fence import (
     same_fence_item,
     same_rally_item,
 )
-from tests.sitl.ardupilot_sitl import instances
+from gcs.mission.geographic import derive_file
+from tests.e2e.flying import online, register, wait_for
+from tests.geographic import field, point, polygon, rectangle
+from tests.service_process import ServiceProcess
+from tests.sitl.ardupilot_sitl import homes_at_starts, instances
+from tests.sitl.test_real_ardupilot import all_events, create_flight, final_state
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow, pytest.mark.timeout(900)]
 
@@ -137,3 +145,41 @@ async def fly_across(link: VehicleLink, action: int, mode: str) -> None:
     if statuses:  # FENCE_STATUS streams with the extended status, when it is asked for
         assert statuses[-1].breach_type == mavlink2.FENCE_BREACH_BOUNDARY
         assert statuses[-1].breach_count >= 1
+
+
+def test_the_service_flies_a_geographic_scenario_inside_its_fence(tmp_path: Path) -> None:
+    """The whole product on real ArduCopter: a geographic scenario (a field, a barn, a
+    rally point) posted, planned, bound, uploaded (its fence and rally points verified
+    and the fence enabled with the service's default FENCE_ACTION) and flown round the
+    barn to the goal with the fence in force, without a breach."""
+    document = field(zones=[polygon(rectangle(120, 60, 180, 140), role="no-fly", name="barn")])
+    document["features"].append(point(40, 170, role="rally", name="gate"))
+    scenario = derive_file(document).scenario
+    service = ServiceProcess(tmp_path / "data")
+    with instances(homes_at_starts(scenario), tmp_path, SPEEDUP) as sitl:
+        service.start()
+        try:
+            with service.client() as client:
+                body = json.dumps(document).encode()
+                created = client.post(
+                    "/scenarios", content=body, headers={"Content-Type": "application/geo+json"}
+                )
+                assert created.status_code == 201, created.text
+                sid = created.json()["id"]
+                planned = client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30}).json()
+                ids = [register(client, i.connection) for i in sitl]
+                made = create_flight(client, planned["id"], scenario, ids, None)
+                assert made.status_code == 201, made.text
+                flight = made.json()["id"]
+                wait_for(lambda: all(online(client, v) for v in ids), 60, "vehicles online")
+                uploaded = client.post(f"/flights/{flight}/upload")
+                assert uploaded.status_code == 200, uploaded.text
+                assert all(v["ok"] for v in uploaded.json()["vehicles"]), uploaded.text
+                assert client.post(f"/flights/{flight}/start").status_code == 202
+                state = final_state(client, flight)
+                events = all_events(client, flight)
+        finally:
+            service.stop()
+    kinds = [(e["kind"], e["uav_id"]) for e in events]
+    print(f"\ngeographic service flight with its fence: {state['state']}; {kinds[-6:]}")
+    assert state["state"] == "landed", (state, kinds[-20:])
