@@ -21,64 +21,12 @@ from tests.geographic import (
     kml,
     kml_point,
     kml_polygon,
-    lon_lat,
+    lat_lon,
     placemark,
+    qgc_plan,
     shape_in_metres,
     to_metres,
 )
-
-
-def lat_lon(east: float, north: float) -> list[float]:
-    lon, lat = lon_lat(east, north)
-    return [lat, lon]
-
-
-def qgc_plan(
-    home: tuple[float, float],
-    goal: tuple[float, float],
-    *,
-    fence: bool = True,
-    cruise: float = 4.0,
-) -> dict[str, Any]:
-    """A `.plan` as QGroundControl saves one: takeoff, a waypoint, the goal, land there;
-    its fence a 300 x 200 m area with a barn and a mast, one rally point."""
-    items = [
-        {"command": 22, "frame": 3, "params": [0, 0, 0, None, 0, 0, 20]},
-        {"command": 16, "frame": 3, "params": [0, 0, 0, None, *lat_lon(150, 20), 20]},
-        {"command": 16, "frame": 3, "params": [0, 0, 0, None, *lat_lon(*goal), 20]},
-        {"command": 21, "frame": 3, "params": [0, 0, 0, None, 0, 0, 0]},
-    ]
-    geo_fence: dict[str, Any] = {"version": 2, "circles": [], "polygons": []}
-    if fence:
-        area = [lat_lon(0, 0), lat_lon(300, 0), lat_lon(300, 200), lat_lon(0, 200)]
-        barn = [lat_lon(120, 60), lat_lon(180, 60), lat_lon(180, 140), lat_lon(120, 140)]
-        geo_fence["polygons"] = [
-            {"inclusion": True, "polygon": area, "version": 1},
-            {"inclusion": False, "polygon": barn, "version": 1},
-        ]
-        mast = {"center": lat_lon(60, 150), "radius": 15}
-        geo_fence["circles"] = [{"circle": mast, "inclusion": False, "version": 1}]
-    return {
-        "fileType": "Plan",
-        "version": 1,
-        "groundStation": "QGroundControl",
-        "geoFence": geo_fence,
-        "rallyPoints": {"version": 2, "points": [[*lat_lon(20, 180), 30]] if fence else []},
-        "mission": {
-            "version": 2,
-            "firmwareType": 3,
-            "vehicleType": 2,
-            "cruiseSpeed": cruise,
-            "hoverSpeed": 5,
-            "globalPlanAltitudeMode": 1,
-            "plannedHomePosition": [*lat_lon(*home), 584],
-            "items": [
-                {"type": "SimpleItem", "autoContinue": True, "doJumpId": k + 1, **item}
-                for k, item in enumerate(items)
-            ],
-        },
-    }
-
 
 FLEET = {
     "alpha": qgc_plan((25, 25), (275, 175)),
