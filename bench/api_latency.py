@@ -35,7 +35,7 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -356,13 +356,11 @@ def commit() -> str:
     return out.stdout.strip() + (" (gcs/ with uncommitted changes)" if dirty.stdout else "")
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--clients", type=int, default=20)
-    parser.add_argument("--seconds", type=float, default=30.0)
-    parser.add_argument("--out", type=Path, default=Path("bench/results/api_latency.md"))
-    parser.add_argument("--no-postgres", action="store_true", help="SQLite only")
-    args = parser.parse_args(argv)
+def on_each_database(
+    args: argparse.Namespace, prefix: str, measure: Callable[..., Any]
+) -> tuple[list[Any], dict[str, Any]]:
+    """`measure(name, tmp, args, pg)` on SQLite, then (unless `--no-postgres`) on a
+    throw-away PostgreSQL cluster, one after the other; the runs and the run's metadata."""
     meta: dict[str, Any] = {
         "date": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
         "load_before": loadavg(),
@@ -372,18 +370,32 @@ def main(argv: list[str] | None = None) -> int:
     }
     started = time.perf_counter()
     runs = []
-    with tempfile.TemporaryDirectory(prefix="mvo-api-latency-") as name:
+    with tempfile.TemporaryDirectory(prefix=prefix) as name:
         tmp = Path(name)
         runs.append(measure("SQLite", tmp, args, None))
         if not args.no_postgres:
             with postgres_url() as pg:
                 runs.append(measure("PostgreSQL", tmp, args, pg))
     meta["wall_s"] = time.perf_counter() - started
-    text = report(args, runs, meta)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
+    return runs, meta
+
+
+def publish(out: Path, text: str) -> int:
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(text)
     print(text)
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--clients", type=int, default=20)
+    parser.add_argument("--seconds", type=float, default=30.0)
+    parser.add_argument("--out", type=Path, default=Path("bench/results/api_latency.md"))
+    parser.add_argument("--no-postgres", action="store_true", help="SQLite only")
+    args = parser.parse_args(argv)
+    runs, meta = on_each_database(args, "mvo-api-latency-", measure)
+    return publish(args.out, report(args, runs, meta))
 
 
 if __name__ == "__main__":

@@ -36,17 +36,16 @@ import contextlib
 import os
 import platform
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
 import httpx
 import numpy as np
 
-from bench.api_latency import commit, pg_pids, pg_version, postgres_url
+from bench.api_latency import on_each_database, pg_pids, publish
 from bench.service_bench import (
     FLEET,
     CpuMeter,
@@ -59,7 +58,7 @@ from bench.service_bench import (
 )
 from planner.experiments.machine import cpu_model
 from tests.service_process import ServiceProcess
-from tests.storage.postgres import PostgresServer, binaries
+from tests.storage.postgres import PostgresServer
 
 LAG = "mvo_gcs_event_store_lag_seconds"
 SAMPLE_S = 0.25  # the backlog's sampling period
@@ -380,27 +379,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("bench/results/event_lag.md"))
     parser.add_argument("--no-postgres", action="store_true", help="SQLite only")
     args = parser.parse_args(argv)
-    meta: dict[str, Any] = {
-        "date": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        "load_before": loadavg(),
-        "command": "PYTHONPATH=. .venv/bin/python " + " ".join(sys.argv),
-        "commit": commit(),
-        "pg": pg_version(binaries()),
-    }
-    started = time.perf_counter()
-    runs = []
-    with tempfile.TemporaryDirectory(prefix="mvo-event-lag-") as name:
-        tmp = Path(name)
-        runs.append(measure("SQLite", tmp, args, None))
-        if not args.no_postgres:
-            with postgres_url() as pg:
-                runs.append(measure("PostgreSQL", tmp, args, pg))
-    meta["wall_s"] = time.perf_counter() - started
-    text = report(args, runs, meta)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(text)
-    print(text)
-    return 0
+    runs, meta = on_each_database(args, "mvo-event-lag-", measure)
+    return publish(args.out, report(args, runs, meta))
 
 
 if __name__ == "__main__":
