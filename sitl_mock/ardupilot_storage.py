@@ -35,7 +35,7 @@ ABSOLUTE_FRAMES = frozenset(
 )
 LOCATION_ALT_MAX_M = 83000.0
 UINT16_MAX = 0xFFFF
-INVALID_PARAM = (
+INVALID_PARAM: tuple[int, ...] = (
     mavlink.MAV_MISSION_INVALID_PARAM1,
     mavlink.MAV_MISSION_INVALID_PARAM2,
     mavlink.MAV_MISSION_INVALID_PARAM3,
@@ -51,17 +51,17 @@ def refusal(item: MissionItem) -> int | None:
         if math.isinf(value) or (math.isnan(value) and not nan_ok):
             return INVALID_PARAM[index]
     if item.command == mavlink.MAV_CMD_NAV_WAYPOINT and not 0 <= item.param1 <= UINT16_MAX:
-        return mavlink.MAV_MISSION_INVALID_PARAM1
+        return int(mavlink.MAV_MISSION_INVALID_PARAM1)
     if item.command not in NAV_COMMANDS:  # no position kept (`AP_Mission::stored_in_location`)
         return None
     if not -90e7 <= item.x <= 90e7:
-        return mavlink.MAV_MISSION_INVALID_PARAM5_X
+        return int(mavlink.MAV_MISSION_INVALID_PARAM5_X)
     if not -180e7 <= item.y <= 180e7:
-        return mavlink.MAV_MISSION_INVALID_PARAM6_Y
+        return int(mavlink.MAV_MISSION_INVALID_PARAM6_Y)
     if math.isnan(item.z) or abs(item.z) >= LOCATION_ALT_MAX_M:
-        return mavlink.MAV_MISSION_INVALID_PARAM7
+        return int(mavlink.MAV_MISSION_INVALID_PARAM7)
     if item.frame not in RELATIVE_FRAMES | ABSOLUTE_FRAMES:
-        return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
+        return int(mavlink.MAV_MISSION_UNSUPPORTED_FRAME)
     return None
 
 

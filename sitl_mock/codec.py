@@ -13,11 +13,13 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from . import signing
 
+__all__ = ["VEHICLE_COMPONENT", "Decoder", "Encoder", "Message", "Sender", "mavlink"]
+
 Message: TypeAlias = Any
 """A pymavlink message (`mavlink.MAVLink_message`): its fields are attributes made at run time,
 so a static type cannot name them."""
 
-VEHICLE_COMPONENT = mavlink.MAV_COMP_ID_AUTOPILOT1
+VEHICLE_COMPONENT: int = mavlink.MAV_COMP_ID_AUTOPILOT1
 
 
 class Encoder:
@@ -40,7 +42,7 @@ class Encoder:
     def encode(self, msg: Message) -> bytes:
         if self._signs:  # ArduPilot keeps its signing clock current; pymavlink only counts
             signing.keep_current(self._mav, self._wall())
-        buf = msg.pack(self._mav)
+        buf: bytes = msg.pack(self._mav)
         self._mav.seq = (self._mav.seq + 1) % 256
         return buf
 

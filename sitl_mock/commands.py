@@ -20,7 +20,7 @@ from .mission_store import MissionStore
 from .modes import FlightMode
 from .telemetry import TelemetrySchedule
 
-UNSUPPORTED = mavlink.MAV_RESULT_UNSUPPORTED
+UNSUPPORTED: int = mavlink.MAV_RESULT_UNSUPPORTED
 FORCE_MAGIC = 21196
 RETRY_WINDOW_S = 5.0
 """Wall seconds in which a command repeated with a higher `confirmation` gets the same answer."""

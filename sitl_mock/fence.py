@@ -76,23 +76,23 @@ CIRCLE_BACKUP_M = 20.0
 
 def fence_item_refusal(item: MissionItem) -> int | None:
     if item.frame not in FENCE_FRAMES:
-        return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
+        return int(mavlink.MAV_MISSION_UNSUPPORTED_FRAME)
     if item.command not in (INCLUSION, EXCLUSION, CIRCLE_INCLUSION, CIRCLE_EXCLUSION, RETURN_POINT):
-        return mavlink.MAV_MISSION_UNSUPPORTED
+        return int(mavlink.MAV_MISSION_UNSUPPORTED)
     return None
 
 
 def rally_item_refusal(item: MissionItem) -> int | None:
     if item.command != mavlink.MAV_CMD_NAV_RALLY_POINT:
-        return mavlink.MAV_MISSION_UNSUPPORTED
+        return int(mavlink.MAV_MISSION_UNSUPPORTED)
     if item.frame not in RALLY_FRAMES:
-        return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
+        return int(mavlink.MAV_MISSION_UNSUPPORTED_FRAME)
     if not -900_000_000 <= item.x <= 900_000_000:
-        return mavlink.MAV_MISSION_INVALID_PARAM5_X
+        return int(mavlink.MAV_MISSION_INVALID_PARAM5_X)
     if not -1_800_000_000 <= item.y <= 1_800_000_000:
-        return mavlink.MAV_MISSION_INVALID_PARAM6_Y
+        return int(mavlink.MAV_MISSION_INVALID_PARAM6_Y)
     if not -32768 <= item.z <= 32767:
-        return mavlink.MAV_MISSION_INVALID_PARAM7
+        return int(mavlink.MAV_MISSION_INVALID_PARAM7)
     return None
 
 
@@ -328,10 +328,10 @@ class FenceMonitor:
     def breach_type(self) -> int:
         """FENCE_STATUS breach_type: BOUNDARY for the circle or polygons, else MAXALT."""
         if self.breaches & (CIRCLE | POLYGON):
-            return mavlink.FENCE_BREACH_BOUNDARY
+            return int(mavlink.FENCE_BREACH_BOUNDARY)
         if self.breaches & ALT_MAX:
-            return mavlink.FENCE_BREACH_MAXALT
-        return mavlink.FENCE_BREACH_NONE
+            return int(mavlink.FENCE_BREACH_MAXALT)
+        return int(mavlink.FENCE_BREACH_NONE)
 
 
 def fence_names(bits: int) -> str:

@@ -12,16 +12,27 @@ from .codec import mavlink
 from .fence import FenceMonitor, Zones
 from .flavour import Flavour
 from .kinematics import Body, NavLimits
-from .manoeuvres import TAKEOFF, Climb, FlyTo, Hold, Land, Manoeuvre, Stop, return_home
+from .manoeuvres import (
+    IN_AIR,
+    ON_GROUND,
+    TAKEOFF,
+    Climb,
+    FlyTo,
+    Hold,
+    Land,
+    Manoeuvre,
+    Stop,
+    return_home,
+)
 from .mission_runner import ItemPlacer, MissionEvents, MissionRunner, MissionState
 from .mission_store import MissionStore
 from .modes import ARDUCOPTER_NAMES, REQUIRES_POSITION, FlightMode
 from .params import ParameterSet
 from .readiness import Timeline, arducopter_arming_failures, arducopter_mandatory_failures
 
-ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
-FAILED = mavlink.MAV_RESULT_FAILED
-DENIED = mavlink.MAV_RESULT_DENIED
+ACCEPTED: int = mavlink.MAV_RESULT_ACCEPTED
+FAILED: int = mavlink.MAV_RESULT_FAILED
+DENIED: int = mavlink.MAV_RESULT_DENIED
 
 AIRBORNE_ABOVE_M = 0.5
 NOT_ARMABLE = frozenset({FlightMode.AUTO, FlightMode.RTL, FlightMode.LAND})
@@ -139,12 +150,8 @@ class FlightController:
         )
         if not self._airborne:
             climbing = self.armed and phase == TAKEOFF
-            return (
-                mavlink.MAV_LANDED_STATE_TAKEOFF
-                if climbing
-                else (mavlink.MAV_LANDED_STATE_ON_GROUND)
-            )
-        return phase if phase is not None else mavlink.MAV_LANDED_STATE_IN_AIR
+            return TAKEOFF if climbing else ON_GROUND
+        return phase if phase is not None else IN_AIR
 
     def limits(self) -> NavLimits:
         limits = self.flavour.limits(self.params)

@@ -238,7 +238,8 @@ class PointMassFleet:
 
 
 def _distance(vectors: np.ndarray) -> np.ndarray:
-    return np.hypot(vectors[..., 0], vectors[..., 1])
+    distance: np.ndarray = np.hypot(vectors[..., 0], vectors[..., 1])
+    return distance
 
 
 class _Legs:
@@ -285,7 +286,8 @@ class _Legs:
 
     def newest(self) -> np.ndarray:
         """Each vehicle's latest leg flying (any slot if none)."""
-        return np.argmax(np.where(self.on, self.start, -np.inf), axis=1)
+        newest: np.ndarray = np.argmax(np.where(self.on, self.start, -np.inf), axis=1)
+        return newest
 
     def evaluate(self, now: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Offset and speed of every leg now, which legs have finished and which are
@@ -316,11 +318,13 @@ class Body:
     @property
     def position(self) -> np.ndarray:
         """(east, north, alt above home), a copy."""
-        return self._fleet.pos[self.index].copy()
+        position: np.ndarray = self._fleet.pos[self.index].copy()
+        return position
 
     @property
     def velocity(self) -> np.ndarray:
-        return self._fleet.vel[self.index].copy()
+        velocity: np.ndarray = self._fleet.vel[self.index].copy()
+        return velocity
 
     @property
     def alt(self) -> float:

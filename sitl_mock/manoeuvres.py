@@ -8,9 +8,10 @@ from typing import Protocol
 from .codec import mavlink
 from .kinematics import Body, NavLimits
 
-IN_AIR = mavlink.MAV_LANDED_STATE_IN_AIR
-TAKEOFF = mavlink.MAV_LANDED_STATE_TAKEOFF
-LANDING = mavlink.MAV_LANDED_STATE_LANDING
+ON_GROUND: int = mavlink.MAV_LANDED_STATE_ON_GROUND
+IN_AIR: int = mavlink.MAV_LANDED_STATE_IN_AIR
+TAKEOFF: int = mavlink.MAV_LANDED_STATE_TAKEOFF
+LANDING: int = mavlink.MAV_LANDED_STATE_LANDING
 
 LAND_SLOW_BELOW_M = 10.0
 """ArduCopter descends at its descent rate to 10 m, then at LAND_SPD_MS."""

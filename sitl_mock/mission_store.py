@@ -247,9 +247,9 @@ class MissionStore:
         if self._ardupilot and upload.mission_type == RALLY:
             return fence.rally_item_refusal(item)
         if item.frame not in SUPPORTED_FRAMES:
-            return mavlink.MAV_MISSION_UNSUPPORTED_FRAME
+            return int(mavlink.MAV_MISSION_UNSUPPORTED_FRAME)
         if item.command not in SUPPORTED_COMMANDS[upload.mission_type]:
-            return mavlink.MAV_MISSION_UNSUPPORTED
+            return int(mavlink.MAV_MISSION_UNSUPPORTED)
         if upload.mission_type == MISSION:
             return self.flavour.item_refusal(item)
         return None

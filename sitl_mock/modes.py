@@ -61,7 +61,7 @@ class ModeTable:
         return mode in self._numbers
 
     def base_mode(self, mode: FlightMode, armed: bool) -> int:
-        flags = self._base_flags.get(mode, 0) | mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        flags: int = self._base_flags.get(mode, 0) | mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
         if mode in self._guided:
             flags |= mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
         if armed:

@@ -181,5 +181,5 @@ class ParameterSet:
 
     def _encode(self, param: Param) -> float:
         if self._bytewise and param.type in _INTEGER_TYPES:
-            return struct.unpack("<f", struct.pack("<i", int(param.value)))[0]
+            return float(struct.unpack("<f", struct.pack("<i", int(param.value)))[0])
         return param.value

@@ -93,7 +93,7 @@ class Simulator:
         self._track_every = max(1, round(1.0 / (TRACK_RATE_HZ * step_s)))
         self._loop: asyncio.AbstractEventLoop | None = None
         self._loop_thread: int | None = None
-        self._task: asyncio.Task | None = None
+        self._task: asyncio.Task[None] | None = None
         self._thread: threading.Thread | None = None
         self._stopping = False
         self._outputs: dict[tuple[str, int], UdpOutput] = {}

@@ -59,4 +59,4 @@ class VehicleState:
     @property
     def ground_speed(self) -> float:
         north, east, _ = self.velocity_ned
-        return (north**2 + east**2) ** 0.5
+        return float((north**2 + east**2) ** 0.5)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import asyncio
 import itertools
 from collections.abc import Callable, Hashable
-from typing import Protocol
+from typing import Any, Protocol
 
 from .clock import loop_time
 
@@ -37,7 +37,7 @@ class UdpEndpoint(asyncio.DatagramProtocol):
 
     def __init__(self, on_packet: PacketHandler) -> None:
         self._on_packet = on_packet
-        self._peers: dict[tuple, float] = {}
+        self._peers: dict[tuple[Any, ...], float] = {}
         self._transport: asyncio.DatagramTransport | None = None
         self.port = 0
 
@@ -53,7 +53,7 @@ class UdpEndpoint(asyncio.DatagramProtocol):
         self._transport = transport  # type: ignore[assignment]
         self.port = transport.get_extra_info("sockname")[1]
 
-    def datagram_received(self, data: bytes, addr: tuple) -> None:
+    def datagram_received(self, data: bytes, addr: tuple[Any, ...]) -> None:
         self._peers[addr] = loop_time()
         self._on_packet(data, ("udp", addr))
 
@@ -82,7 +82,7 @@ class TcpEndpoint:
         self._on_packet = on_packet
         self._writers: dict[int, asyncio.StreamWriter] = {}
         self._server: asyncio.Server | None = None
-        self._tasks: set[asyncio.Task] = set()
+        self._tasks: set[asyncio.Task[None]] = set()
         self.port = 0
 
     @classmethod
@@ -223,7 +223,7 @@ class UdpOutput(asyncio.DatagramProtocol):
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self._transport = transport  # type: ignore[assignment]
 
-    def datagram_received(self, data: bytes, addr: tuple) -> None:
+    def datagram_received(self, data: bytes, addr: tuple[Any, ...]) -> None:
         for on_packet in self._listeners:
             on_packet(data, ("out", self.host, self.port))
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Hashable
-from typing import ClassVar, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -78,7 +78,8 @@ class Vehicle:
         self._encoder = Encoder(self.sysid, key=config.signing_key)
         self._decoders: dict[Hashable, Decoder] = {}
         self._rejected_before = 0
-        self.link: FaultyLink = FaultyLink(config.faults, rng)
+        # inbound (message, link) pairs, outbound encoded bytes
+        self.link: FaultyLink[Any] = FaultyLink(config.faults, rng)
         self.faults = config.faults
         self.params = self.flavour.new_params(self.sysid)
         lat, lon, alt = config.home
@@ -299,11 +300,11 @@ class Vehicle:
 
     def _system_status(self, now: float) -> int:
         if self.flight.uptime(now) < self.flight.timeline.boot_status_s:
-            return mavlink.MAV_STATE_BOOT
+            return int(mavlink.MAV_STATE_BOOT)
         flying = self.flight.armed and (
             self.flight.landed_state != mavlink.MAV_LANDED_STATE_ON_GROUND
         )
-        return mavlink.MAV_STATE_ACTIVE if flying else mavlink.MAV_STATE_STANDBY
+        return int(mavlink.MAV_STATE_ACTIVE if flying else mavlink.MAV_STATE_STANDBY)
 
     def _home_item(self) -> MissionItem:
         home = self.flight.home
