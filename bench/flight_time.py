@@ -1,0 +1,131 @@
+"""Where a flight's time goes: the plan's own clock, copters flying alone, and the
+passing order kept with and without what keeping it costs.
+
+`bench/flight_speed.py` measures flights against the product's own timed flight
+(`FlightPlan.duration_s`). This one takes that timing apart, on the ground station's own
+model of the vehicles (`gcs.mission.flight_timing`, the one the product times flights
+and judges their safety with), with the plans `flight_speed.py` flies:
+
+- *plan*: the plan's clock stretched to the flight speed (instant speed changes, a UAV
+  gone the moment it reaches its goal);
+- *alone*: every vehicle flying its path with its limits, nobody waiting for anybody
+  (jerk-limited S-curves, corners, the stop at the end);
+- *order, no landing*: the passing order kept as the product keeps it (stopping
+  distances, the reaction time), but a UAV out of the way the moment it reaches its
+  goal, as the plan has it;
+- *product*: the product's timing, a vehicle in the way until it has landed at its goal.
+
+Each column is a lower bound on the ones after it. Run:
+
+    .venv/bin/python bench/flight_time.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from gcs.cli.planning_options import add_planning_arguments, planner_settings  # noqa: E402
+from gcs.mavlink.mission_item import Autopilot  # noqa: E402
+from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, FlightPlan, flight_plan  # noqa: E402
+from gcs.mission.flight_timing import fly  # noqa: E402
+from planner.experiments.machine import describe_machine  # noqa: E402
+from planner.pipeline import plan  # noqa: E402
+from planner.scenario import Scenario  # noqa: E402
+
+sys.path.insert(0, str(ROOT / "bench"))
+from flight_speed import PLANNING, scenarios  # noqa: E402
+
+RESULTS = ROOT / "bench" / "results" / "flight_time.md"
+SPEEDS = (1.0, 5.0, 10.0)
+COLUMNS = ("plan", "alone", "order, no landing", "product")
+
+
+@dataclass
+class Row:
+    scenario: str
+    uavs: int
+    speed: float
+    seconds: dict[str, float]
+
+
+def last_arrival(flight: FlightPlan, altitude_m: float) -> float:
+    """The passing order kept, landings from `altitude_m` (0: no landing)."""
+    timed = fly(
+        flight.paths, flight.leg_speeds, flight.limits, flight.order,
+        altitude_m=altitude_m, stops=flight.stops,
+    )  # fmt: skip
+    return max(t.arrival_s for t in timed.values())
+
+
+def measure(name: str, scenario: Scenario, speeds: tuple[float, ...]) -> list[Row]:
+    parser = argparse.ArgumentParser()
+    add_planning_arguments(parser)
+    settings = planner_settings(parser.parse_args([name, *PLANNING]))
+    planned = plan(scenario.with_clearance(DEFAULT_CLEARANCE_M), settings)
+    autopilots = {u.id: Autopilot.ARDUPILOT for u in scenario.uavs}
+    rows = []
+    for speed in speeds:
+        flight = flight_plan(planned, scenario, autopilots, max_speed_m_s=speed)
+        alone = fly(flight.paths, flight.leg_speeds, flight.limits, None, stops=flight.stops)
+        seconds = {
+            "plan": max(float(p.arrive[-1]) for p in flight.paths.values()),
+            "alone": max(t.arrival_s for t in alone.values()),
+            "order, no landing": last_arrival(flight, 0.0),
+            "product": flight.duration_s,
+        }
+        rows.append(Row(name, len(scenario.uavs), speed, seconds))
+    return rows
+
+
+def write(rows: list[Row], out: Path, began: datetime, wall_s: float) -> None:
+    head = "| scenario | UAVs | m/s | " + " | ".join(f"{c} s" for c in COLUMNS) + " |"
+    lines = [
+        "# Where a flight's time goes",
+        "",
+        f"Run {began:%Y-%m-%d %H:%M} UTC on {describe_machine()}, {wall_s:.0f} s.",
+        "",
+        "```",
+        ".venv/bin/python bench/flight_time.py",
+        "```",
+        "",
+        "The last arrival over a goal, seconds from the common start, on the ground "
+        "station's model of the vehicles (`gcs.mission.flight_timing`), for the plans "
+        "`bench/flight_speed.py` flies (see `bench/flight_time.py` for each column). "
+        "*product* is the timing `mvo-gcs fly` prints, which flights are measured against.",
+        "",
+        head,
+        "| --- | ---: | ---: |" + " ---: |" * len(COLUMNS),
+    ]
+    for row in rows:
+        cells = " | ".join(f"{row.seconds[c]:.1f}" for c in COLUMNS)
+        lines.append(f"| {row.scenario} | {row.uavs} | {row.speed:g} | {cells} |")
+    out.write_text("\n".join(lines) + "\n")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--generated", type=int, default=1, help="seeds per family")
+    parser.add_argument("--speeds", default=",".join(f"{s:g}" for s in SPEEDS))
+    parser.add_argument("--out", type=Path, default=RESULTS)
+    args = parser.parse_args()
+    speeds = tuple(float(s) for s in args.speeds.split(","))
+    began, clock = datetime.now(UTC), time.perf_counter()
+    rows = []
+    for name, scenario in scenarios(args.generated):
+        rows.extend(measure(name, scenario, speeds))
+        print(rows[-1], flush=True)
+    write(rows, args.out, began, time.perf_counter() - clock)
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
