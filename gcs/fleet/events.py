@@ -15,6 +15,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import ClassVar
 
 from gcs.fleet.route_tracker import VehicleProgress
 
@@ -30,15 +31,52 @@ class FlightOutcome(StrEnum):
     ENDED = "ended"  # the others ended without a vehicle that was withdrawn
 
 
+class EventKind(StrEnum):
+    """What an event is: the `kind` of every event a client reads (the live stream, the
+    stored events, the console). The value is the wire name: it never changes, since
+    clients compare it and databases store it."""
+
+    # published by the fleet: one event class each, below
+    UPLOADED = "Uploaded"
+    VEHICLE_READY = "VehicleReady"
+    VEHICLE_FAILED = "VehicleFailed"
+    MISSIONS_STARTED = "MissionsStarted"
+    START_CANCELLED = "StartCancelled"
+    ITEM_REACHED = "ItemReached"
+    WAITING = "Waiting"
+    WAIT_OVER = "WaitOver"
+    OPERATOR_HELD = "OperatorHeld"
+    OPERATOR_CONTINUED = "OperatorContinued"
+    WITHDRAWN = "Withdrawn"
+    VEHICLE_LINK_REGAINED = "VehicleLinkRegained"
+    ADDRESS_CLAIMED = "AddressClaimed"
+    PROGRESS = "Progress"  # live only, never stored (see POSITIONS)
+    VEHICLE_FINISHED = "VehicleFinished"
+    ABORTED = "Aborted"
+    FLIGHT_ENDED = "FlightEnded"
+    # recorded by the service about a flight (gcs.service.flights)
+    FLIGHT_STATE = "FlightState"  # the flight's state changed (`state`, `note`)
+    OBJECT_REPORTED = "ObjectReported"  # a live replan's answer
+    OPERATOR_COMMAND = "OperatorCommand"  # one vehicle commanded during a flight
+    POSITIONS = "Positions"  # stored only, once a second from PROGRESS: the flown tracks
+    TAKEN_OVER = "TakenOver"  # another service took the flight over
+    # no longer made: the schedule keeper's pause and resume of the vehicles waiting for a
+    # late one, before the passing order's WAITING and WAIT_OVER; databases keep them
+    PAUSED = "Paused"
+    RESUMED = "Resumed"
+
+
 @dataclass(frozen=True)
 class FleetEvent:
-    """Base of every event; `at` is the loop time it happened."""
+    """Base of every event; `at` is the loop time it happened, `kind` its wire name."""
 
+    kind: ClassVar[EventKind]
     at: float = field(default=0.0, kw_only=True)
 
 
 @dataclass(frozen=True)
 class Uploaded(FleetEvent):
+    kind = EventKind.UPLOADED
     uav_id: str
     ok: bool
     detail: str
@@ -48,12 +86,14 @@ class Uploaded(FleetEvent):
 class VehicleReady(FleetEvent):
     """Armed, airborne and holding at its altitude over its start."""
 
+    kind = EventKind.VEHICLE_READY
     uav_id: str
     altitude_m: float
 
 
 @dataclass(frozen=True)
 class VehicleFailed(FleetEvent):
+    kind = EventKind.VEHICLE_FAILED
     uav_id: str
     phase: str  # "upload", "prepare", "start", "flight"
     message: str
@@ -61,6 +101,7 @@ class VehicleFailed(FleetEvent):
 
 @dataclass(frozen=True)
 class MissionsStarted(FleetEvent):
+    kind = EventKind.MISSIONS_STARTED
     uav_ids: tuple[str, ...]
     spread_ms: float  # between the first and the last start command sent
     timed_duration_s: float = 0.0  # to the last arrival, as the timed flight has it
@@ -70,12 +111,14 @@ class MissionsStarted(FleetEvent):
 class StartCancelled(FleetEvent):
     """A vehicle failed before the start: nobody starts, the others do `fallback`."""
 
+    kind = EventKind.START_CANCELLED
     failed: tuple[str, ...]
     fallback: str
 
 
 @dataclass(frozen=True)
 class ItemReached(FleetEvent):
+    kind = EventKind.ITEM_REACHED
     uav_id: str
     seq: int
     plan_time_s: float  # when it got there, on the plan's clock
@@ -87,6 +130,7 @@ class Waiting(FleetEvent):
     """A vehicle stops (or approaches slowly, "creep") to let another pass first, as the
     plan has it: it may not go beyond `gap_m` metres ahead until `waits_for` has passed."""
 
+    kind = EventKind.WAITING
     uav_id: str
     waits_for: str
     how: str  # "stop" or "creep"
@@ -98,6 +142,7 @@ class Waiting(FleetEvent):
 class WaitOver(FleetEvent):
     """The vehicle it waited for is out of its way: it flies on."""
 
+    kind = EventKind.WAIT_OVER
     uav_id: str
 
 
@@ -105,11 +150,13 @@ class WaitOver(FleetEvent):
 class OperatorHeld(FleetEvent):
     """The operator stopped these vehicles; only the operator's continue moves them."""
 
+    kind = EventKind.OPERATOR_HELD
     uav_ids: tuple[str, ...]
 
 
 @dataclass(frozen=True)
 class OperatorContinued(FleetEvent):
+    kind = EventKind.OPERATOR_CONTINUED
     uav_ids: tuple[str, ...]
 
 
@@ -117,12 +164,14 @@ class OperatorContinued(FleetEvent):
 class Withdrawn(FleetEvent):
     """The operator sent one vehicle down (land) or home (rtl): it leaves the plan."""
 
+    kind = EventKind.WITHDRAWN
     uav_id: str
     mode: str
 
 
 @dataclass(frozen=True)
 class VehicleLinkRegained(FleetEvent):
+    kind = EventKind.VEHICLE_LINK_REGAINED
     uav_id: str
 
 
@@ -132,30 +181,35 @@ class AddressClaimed(FleetEvent):
     or the vehicle itself come back through a restarted router, for the operator to move
     (`POST /vehicles/{id}/address`)."""
 
+    kind = EventKind.ADDRESS_CLAIMED
     uav_id: str
     address: str
 
 
 @dataclass(frozen=True)
 class Progress(FleetEvent):
+    kind = EventKind.PROGRESS
     vehicles: tuple[VehicleProgress, ...]
     min_separation_m: float | None
 
 
 @dataclass(frozen=True)
 class VehicleFinished(FleetEvent):
+    kind = EventKind.VEHICLE_FINISHED
     uav_id: str
     distance_to_goal_m: float
 
 
 @dataclass(frozen=True)
 class Aborted(FleetEvent):
+    kind = EventKind.ABORTED
     mode: str
     reason: str
 
 
 @dataclass(frozen=True)
 class FlightEnded(FleetEvent):
+    kind = EventKind.FLIGHT_ENDED
     completed: bool
     min_separation_m: float | None
     closest_pair: tuple[str, str] | None

@@ -45,4 +45,4 @@ class ActiveFlight:
 
 
 def event_json(event: FleetEvent) -> dict[str, Any]:
-    return {"type": "event", "kind": type(event).__name__, **dataclasses.asdict(event)}
+    return {"type": "event", "kind": event.kind, **dataclasses.asdict(event)}

@@ -14,6 +14,7 @@ import asyncio
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from gcs.fleet.events import EventKind
 from gcs.service.flights.active import LISTENER_QUEUE, ActiveFlight
 from gcs.service.flights.event_writer import EventWriter
 from gcs.service.flights.live_queue import LiveQueue
@@ -66,8 +67,9 @@ class FlightBook:
     async def transition(self, flight_id: str, new: FlightState, note: str = "") -> FlightRow:
         row = await self.flights.transition(flight_id, new, note)
         self._states[flight_id] = new
-        message = {"type": "event", "kind": "FlightState", "state": new.value, "note": note}
-        self.events.record(flight_id, "FlightState", message)
+        kind = EventKind.FLIGHT_STATE
+        message = {"type": "event", "kind": kind, "state": new.value, "note": note}
+        self.events.record(flight_id, kind, message)
         self.tell(flight_id, message)
         return row
 

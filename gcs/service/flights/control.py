@@ -29,6 +29,7 @@ import uuid
 from collections.abc import Iterable
 
 from gcs.fleet.crew import Fallback
+from gcs.fleet.events import EventKind
 from gcs.mavlink.connection import Signing
 from gcs.service.flights.operator import OperatorCommands
 from gcs.service.flights.service import FlightService
@@ -174,13 +175,13 @@ class FlightControl:
         note = f"taken over by service {self.holder.id} at {self.holder.url} from {previous}"
         message = {
             "type": "event",
-            "kind": "TakenOver",
+            "kind": EventKind.TAKEN_OVER,
             "by": self.holder.id,
             "url": self.holder.url,
             "state": state.value,
             "from": previous,
         }
-        self.flights.book.events.record(row.id, "TakenOver", message)
+        self.flights.book.events.record(row.id, EventKind.TAKEN_OVER, message)
         self.flights.book.tell(row.id, message)
         log.warning("flight %s (%s): %s", row.id, state.value, note)
         if state in TAKEN_IN_THE_AIR:

@@ -30,6 +30,7 @@ from collections import deque
 from collections.abc import Iterator
 from typing import Any
 
+from gcs.fleet.events import EventKind
 from gcs.service.flights.event_spill import EventSpill, PendingEvent
 from gcs.service.metrics import ServiceMetrics
 from gcs.service.storage import FlightRepository
@@ -87,7 +88,7 @@ class EventWriter:
         self._wake.set()
 
     def record(
-        self, flight_id: str, kind: str, data: dict[str, Any], uav_id: str | None = None
+        self, flight_id: str, kind: EventKind, data: dict[str, Any], uav_id: str | None = None
     ) -> None:
         """Keep one event for storage; never waits (the flight's tick calls it)."""
         t = self._loop.time() if self._loop is not None else 0.0

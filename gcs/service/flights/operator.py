@@ -19,6 +19,7 @@ from collections.abc import Awaitable, Callable, Iterable
 from typing import Any, Literal
 
 from gcs.fleet.crew import Fallback
+from gcs.fleet.events import EventKind
 from gcs.fleet.outcome import VehicleOutcome
 from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.errors import GcsError
@@ -150,9 +151,10 @@ class OperatorCommands:
         uav = self.book.uav_of(owner, vehicle_id)
         async with self.book.slot(owner.id).intervention():
             outcome = await self._in_flight(owner, uav, vehicle_id, action)
+        kind = EventKind.OPERATOR_COMMAND
         self.book.events.record(
-            owner.id, "OperatorCommand", {"type": "event", "kind": "OperatorCommand",
-            "uav_id": uav, "action": action, "ok": outcome.ok, "detail": outcome.detail}, uav,
+            owner.id, kind, {"type": "event", "kind": kind, "uav_id": uav, "action": action,
+            "ok": outcome.ok, "detail": outcome.detail}, uav,
         )  # fmt: skip
         return VehicleAnswer(uav, vehicle_id, outcome.ok, outcome.detail, _now() - asked)
 

@@ -19,7 +19,7 @@ from collections.abc import Awaitable, Callable, Iterable
 from typing import Any
 
 from gcs.fleet.crew import FleetSettings
-from gcs.fleet.events import FleetEvent, FlightOutcome, Progress
+from gcs.fleet.events import EventKind, FleetEvent, FlightOutcome, Progress
 from gcs.fleet.fleet import Fleet
 from gcs.fleet.outcome import VehicleOutcome
 from gcs.fleet.vehicle_limits import read_limits
@@ -286,11 +286,11 @@ class FlightService:
             message = event_json(event)
             if not isinstance(event, Progress):
                 self.book.events.record(
-                    active.flight_id, message["kind"], message, message.get("uav_id")
+                    active.flight_id, event.kind, message, message.get("uav_id")
                 )
             elif event.at - kept >= TRACK_PERIOD_S:
                 kept = event.at
-                self.book.events.record(active.flight_id, "Positions", positions(event))
+                self.book.events.record(active.flight_id, EventKind.POSITIONS, positions(event))
             self.book.tell(active.flight_id, message)
 
         return record
@@ -355,8 +355,8 @@ class FlightService:
                 for u, o in sorted(outcome.uploads.items())
             ],
         }
-        message = {"type": "event", "kind": "ObjectReported", **answer}
-        self.book.events.record(active.flight_id, "ObjectReported", message)
+        message = {"type": "event", "kind": EventKind.OBJECT_REPORTED, **answer}
+        self.book.events.record(active.flight_id, EventKind.OBJECT_REPORTED, message)
         self.book.tell(active.flight_id, message)
         return answer
 
@@ -499,4 +499,4 @@ def positions(progress: Progress) -> dict[str, Any]:
     """The flown tracks' sample: where each vehicle is, on the flight's clock."""
     vehicles = {p.uav_id: [p.lat, p.lon, p.alt_m] for p in progress.vehicles if p.lat is not None}
     clock = max((p.clock_s for p in progress.vehicles), default=0.0)
-    return {"type": "event", "kind": "Positions", "clock_s": clock, "vehicles": vehicles}
+    return {"type": "event", "kind": EventKind.POSITIONS, "clock_s": clock, "vehicles": vehicles}

@@ -24,6 +24,7 @@ from sqlalchemy import ColumnElement, Engine, create_engine, event, or_, select,
 from sqlalchemy.engine import make_url
 from sqlalchemy.orm import Session, sessionmaker
 
+from gcs.fleet.events import EventKind
 from gcs.service.states import OPEN, FlightState, JobState
 from gcs.service.storage import schema
 from gcs.service.storage.tables import EventRow, FlightRow, JobRow, now
@@ -133,8 +134,9 @@ def _interrupted_event(flight_id: str) -> EventRow:
     """The state change the flight's event history would have had, had it been made
     while the service ran (as `FlightBook.transition` records it)."""
     state = FlightState.INTERRUPTED.value
-    message = {"type": "event", "kind": "FlightState", "state": state, "note": RESTARTED}
-    return EventRow(flight_id=flight_id, kind="FlightState", data=message)
+    kind = EventKind.FLIGHT_STATE
+    message = {"type": "event", "kind": kind, "state": state, "note": RESTARTED}
+    return EventRow(flight_id=flight_id, kind=kind, data=message)
 
 
 def rowcount(result: Any) -> int:

@@ -14,6 +14,7 @@ from fastapi import APIRouter, Query, WebSocket, status
 from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel, ConfigDict, Field
 
+from gcs.fleet.events import EventKind
 from gcs.mavlink.mission_item import Mission
 from gcs.mission.files import parse_plan, plan_text, waypoints_text
 from gcs.service.api.deps import (
@@ -152,8 +153,11 @@ class FlightAction(BaseModel):
 
 
 class EventOut(BaseModel):
+    """One stored event: `data` is the event as the live stream sent it (with `type`,
+    `kind` and, for a fleet event, `at`, the loop time it happened)."""
+
     id: int
-    kind: str
+    kind: EventKind
     uav_id: str | None
     data: dict[str, Any]
     created_at: UtcDatetime

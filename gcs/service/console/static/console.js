@@ -8,6 +8,11 @@ const FINAL_JOB = new Set(["done", "failed", "cancelled", "interrupted"]);
 const FINAL_FLIGHT = new Set(["landed", "aborted", "ended", "cancelled"]);
 const POLL_MS = 2000;
 const EVENTS_SHOWN = 200; // the newest, in the events list
+// The event kinds this page looks for: their wire names (gcs.fleet.events.EventKind).
+const KIND = Object.freeze({
+  PROGRESS: "Progress", ITEM_REACHED: "ItemReached", FLIGHT_ENDED: "FlightEnded",
+  OBJECT_REPORTED: "ObjectReported", POSITIONS: "Positions",
+});
 
 const field = new FieldMap($("map"), document.querySelector('meta[name="tile-url"]').content);
 const S = {
@@ -614,7 +619,7 @@ function onLive(message) {
     noteTimings(message);
     followClock(message);
   } else if (message.type === "event") {
-    if (message.kind === "Progress") return;
+    if (message.kind === KIND.PROGRESS) return;
     addEvent(message);
   } else if (message.type === "dropped") { // this page fell behind: the service says how far
     addEvent({ kind: "live messages missed", count: message.count });
@@ -660,7 +665,7 @@ function addEvent(e) {
     el("strong", { text: e.kind }), e.uav_id ? ` ${e.uav_id}` : "", el("span", { class: "muted", text: ` ${describeEvent(e)}` }));
   list.prepend(item);
   while (list.children.length > EVENTS_SHOWN) list.lastChild.remove();
-  if (e.kind === "ObjectReported") showReplan(e);
+  if (e.kind === KIND.OBJECT_REPORTED) showReplan(e);
 }
 
 async function bindAndUpload() {
@@ -794,9 +799,9 @@ async function lookBack() {
     setScenario(stored.scenario, stored.id, !watched, stored.geographic);
     showPlan(planOut);
     const events = await allEvents(id);
-    const ended = events.find((e) => e.kind === "FlightEnded");
-    const reached = events.filter((e) => e.kind === "ItemReached");
-    const replans = events.filter((e) => e.kind === "ObjectReported");
+    const ended = events.find((e) => e.kind === KIND.FLIGHT_ENDED);
+    const reached = events.filter((e) => e.kind === KIND.ITEM_REACHED);
+    const replans = events.filter((e) => e.kind === KIND.OBJECT_REPORTED);
     for (const r of replans) field.reportedObject(r.data.cell);
     const lines = [
       `flight ${id}: ${flight.state}${flight.note ? ` (${flight.note})` : ""}`,
@@ -805,7 +810,7 @@ async function lookBack() {
     ];
     if (!watched) field.clearVehicles();
     // The flown tracks (positions stored once a second), then the waypoints reached.
-    const samples = events.filter((e) => e.kind === "Positions");
+    const samples = events.filter((e) => e.kind === KIND.POSITIONS);
     for (const uav of Object.keys(flight.bindings)) {
       const track = samples.map((e) => e.data.vehicles[uav]).filter((p) => p && p[0] != null);
       if (track.length) field.flownTrack(order(uav), track.map(([lat, lon]) => [lat, lon]));
