@@ -122,7 +122,8 @@ class _Vehicle:
         if self.gate == Gate.CREEP:
             leg = min(leg, self.approach_m_s)
         ahead, gap = float(self.vertex_speed[k]), float(self.vertex_s[k] - self.s)
-        if self.slowing_for != k and self.v > ahead:
+        peak = self.v + max(self.a, 0.0) ** 2 / (2 * self.limits.jerk_m_s3)
+        if self.slowing_for != k and peak > ahead:  # (the speed grows while `a` ramps down)
             needed = self.limits.slowing_distance(self.v, self.a, ahead)
             if gap <= needed:
                 self.slowing_for = k
