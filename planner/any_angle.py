@@ -70,7 +70,8 @@ def segments_clearance(p0: Array, p1: Array, cells: NDArray[np.int64]) -> Array:
     if not len(cells):
         return np.full(len(p0), np.inf)
     gaps = segment_square_distance(p0[:, None, :], p1[:, None, :], cells[None].astype(float))
-    return gaps.min(axis=1)
+    clearance: Array = gaps.min(axis=1)
+    return clearance
 
 
 def tighten(
@@ -119,7 +120,7 @@ def _cells_in(points: Array, clearance: float, blocked: NDArray[np.bool_]) -> ND
     hi = np.minimum(np.ceil(points.max(axis=0) + reach).astype(int), np.array(blocked.shape) - 1)
     if np.any(lo > hi):
         return np.empty((0, 2), dtype=np.int64)
-    cells = np.argwhere(blocked[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]) + lo
+    cells: NDArray[np.int64] = np.argwhere(blocked[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]) + lo
     if len(cells) <= 8:
         return cells
     centres = cells.astype(float)
@@ -132,7 +133,8 @@ def _cells_in(points: Array, clearance: float, blocked: NDArray[np.bool_]) -> ND
         ]
     )
     inside = np.all(side >= 0, axis=0) | np.all(side <= 0, axis=0)
-    return cells[near | inside]
+    nearby: NDArray[np.int64] = cells[near | inside]
+    return nearby
 
 
 def _drop_needless(pts: Array, clearance: float, blocked: NDArray[np.bool_]) -> Array:

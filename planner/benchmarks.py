@@ -12,40 +12,47 @@ Array = NDArray[np.float64]
 
 
 def sphere(x: Array) -> Array:
-    return np.sum(x**2, axis=1)
+    cost: Array = np.sum(x**2, axis=1)
+    return cost
 
 
 def rosenbrock(x: Array) -> Array:
-    return np.sum(100.0 * (x[:, 1:] - x[:, :-1] ** 2) ** 2 + (x[:, :-1] - 1.0) ** 2, axis=1)
+    cost: Array = np.sum(100.0 * (x[:, 1:] - x[:, :-1] ** 2) ** 2 + (x[:, :-1] - 1.0) ** 2, axis=1)
+    return cost
 
 
 def step(x: Array) -> Array:
     """Σ ⌊x + 0.5⌋², the step function of the literature: flat plateaus, 0 on [-0.5, 0.5)."""
-    return np.sum(np.floor(x + 0.5) ** 2, axis=1)
+    cost: Array = np.sum(np.floor(x + 0.5) ** 2, axis=1)
+    return cost
 
 
 def step_matlab(x: Array) -> Array:
     """Σ |x + 0.5|², the F6 of the authors' MATLAB benchmark code (no floor): 0 at x = -0.5."""
-    return np.sum(np.abs(x + 0.5) ** 2, axis=1)
+    cost: Array = np.sum(np.abs(x + 0.5) ** 2, axis=1)
+    return cost
 
 
 def rastrigin(x: Array) -> Array:
-    return np.sum(x**2 - 10.0 * np.cos(2.0 * np.pi * x) + 10.0, axis=1)
+    cost: Array = np.sum(x**2 - 10.0 * np.cos(2.0 * np.pi * x) + 10.0, axis=1)
+    return cost
 
 
 def ackley(x: Array) -> Array:
     d = x.shape[1]
-    return (
+    cost: Array = (
         -20.0 * np.exp(-0.2 * np.sqrt(np.sum(x**2, axis=1) / d))
         - np.exp(np.sum(np.cos(2.0 * np.pi * x), axis=1) / d)
         + 20.0
         + np.e
     )
+    return cost
 
 
 def griewank(x: Array) -> Array:
     i = np.arange(1, x.shape[1] + 1)
-    return np.sum(x**2, axis=1) / 4000.0 - np.prod(np.cos(x / np.sqrt(i)), axis=1) + 1.0
+    cost: Array = np.sum(x**2, axis=1) / 4000.0 - np.prod(np.cos(x / np.sqrt(i)), axis=1) + 1.0
+    return cost
 
 
 _WEIERSTRASS_K = np.arange(21)  # k_max = 20
@@ -58,7 +65,8 @@ def weierstrass(x: Array) -> Array:
     d = x.shape[1]
     terms = _WEIERSTRASS_A * np.cos(2.0 * np.pi * _WEIERSTRASS_B * (x[..., None] + 0.5))
     offset = d * np.sum(_WEIERSTRASS_A * np.cos(np.pi * _WEIERSTRASS_B))
-    return np.sum(terms, axis=(1, 2)) - offset
+    cost: Array = np.sum(terms, axis=(1, 2)) - offset
+    return cost
 
 
 @dataclass(frozen=True)

@@ -58,8 +58,10 @@ def distance_to_polyline(
 ) -> NDArray[np.float64]:
     """Distance from each point (M, 2) to the polyline (P, 2), all segments at once."""
     a, b = polyline[:-1], polyline[1:]
+    distance: NDArray[np.float64]
     if not len(a):
-        return np.hypot(*(points - polyline[0]).T)
+        distance = np.hypot(*(points - polyline[0]).T)
+        return distance
     d = b - a
     length2 = np.einsum("ij,ij->i", d, d)
     rel = points[:, None, :] - a[None]  # (M, S, 2)
@@ -67,7 +69,8 @@ def distance_to_polyline(
         u = np.where(length2 > 0, np.einsum("msi,si->ms", rel, d) / length2, 0.0)
     u = np.clip(u, 0.0, 1.0)
     gap = rel - u[..., None] * d[None]
-    return np.sqrt(np.einsum("msi,msi->ms", gap, gap)).min(axis=1)
+    distance = np.sqrt(np.einsum("msi,msi->ms", gap, gap)).min(axis=1)
+    return distance
 
 
 def segment_square_distance(

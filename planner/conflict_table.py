@@ -114,7 +114,8 @@ class ConflictTable:
         theirs = np.stack([_held(self.samples[o], count) for o in others])
         gap = np.hypot(theirs[..., 0] - mine[:, 0], theirs[..., 1] - mine[:, 1]).min(axis=1)
         speeds = np.array([self.speeds[o] for o in others]) + self.speeds[uav]
-        return np.maximum(gap - speeds * SAMPLE_S / 2 - 1e-9, 0.0)
+        bound: NDArray[np.float64] = np.maximum(gap - speeds * SAMPLE_S / 2 - 1e-9, 0.0)
+        return bound
 
     def _box_gaps(self, uav: str, others: list[str]) -> NDArray[np.float64]:
         """Distance between `uav`'s bounding box and each of the others'."""
@@ -124,7 +125,8 @@ class ConflictTable:
         theirs = np.array([self.boxes[u] for u in others])
         dx = np.maximum(0.0, np.maximum(theirs[:, 0] - mine[2], mine[0] - theirs[:, 2]))
         dy = np.maximum(0.0, np.maximum(theirs[:, 1] - mine[3], mine[1] - theirs[:, 3]))
-        return np.hypot(dx, dy)
+        gaps: NDArray[np.float64] = np.hypot(dx, dy)
+        return gaps
 
     def comes_near(self, uav: str, slack: float, leave_out: str) -> bool:
         """Does `uav` come within the sum of the radii plus `slack` (at most `NEAR`) of

@@ -64,7 +64,8 @@ class GridGraph:
         """Shortest distance from every cell to `goal` (inf where unreachable), as [x, y]."""
         # Moves are symmetric, so distances from the goal equal distances to it.
         field = dijkstra(self.graph, indices=self.index(goal))
-        return field.reshape(self.shape)
+        distances: NDArray[np.float64] = field.reshape(self.shape)
+        return distances
 
     def tree_to(self, goal: Cell) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
         """Distances to `goal` as [x, y] and each cell's next cell towards it (flat index,
@@ -120,7 +121,8 @@ class GridGraph:
         cells = np.stack([xs, ys], axis=-1)
         inside = _octile(cells, np.array(start)) + _octile(cells, np.array(goal)) <= bound
         inside &= ~self.blocked[xs, ys]
-        return xs[inside] * self.shape[1] + ys[inside]
+        indices: NDArray[np.intp] = xs[inside] * self.shape[1] + ys[inside]
+        return indices
 
     def shortest_path(self, start: Cell, goal: Cell) -> list[Cell] | None:
         """Cells from start to goal along a shortest path, or None if the goal is cut off."""
@@ -155,7 +157,8 @@ def descend(field: NDArray[np.float64], start: Cell, blocked: NDArray[np.bool_])
 def _octile(a: NDArray[np.int64], b: NDArray[np.int64]) -> NDArray[np.float64]:
     """Octile distance (8-connected, diagonals √2) between cells, broadcast over (..., 2)."""
     d = np.abs(a - b)
-    return np.max(d, axis=-1) + (np.sqrt(2.0) - 1.0) * np.min(d, axis=-1)
+    distance: NDArray[np.float64] = np.max(d, axis=-1) + (np.sqrt(2.0) - 1.0) * np.min(d, axis=-1)
+    return distance
 
 
 def cell_map(cells: Iterable[Cell], shape: tuple[int, int]) -> NDArray[np.bool_]:

@@ -29,6 +29,7 @@ import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -64,10 +65,10 @@ class LiveReplan:
     changed: dict[str, Trajectory]  # new trajectories, from the position at `now`
     unresolved: list[str]  # touched UAVs that keep their old trajectory: no safe path
     feasible: bool  # the exact check finds nothing on the whole remaining fleet
-    conflicts: list[dict]  # what it found (Conflict.to_json(), times in plan seconds)
+    conflicts: list[dict[str, Any]]  # what it found (Conflict.to_json(), times in plan seconds)
     explanation: str  # one sentence for the operator
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         return fields | {"changed": {u: t.to_json() for u, t in self.changed.items()}}
 

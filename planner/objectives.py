@@ -69,4 +69,7 @@ def paper_fitness(
     objects: int, length: ArrayLike, deviation: ArrayLike, start_distance: float
 ) -> NDArray[np.float64]:
     """Eq. (10) with w1 = w2 = w3 = w4 = 1."""
-    return objects**2 * np.asarray(length) * np.asarray(deviation) / max(start_distance, 1e-9)
+    fitness: NDArray[np.float64] = (
+        objects**2 * np.asarray(length) * np.asarray(deviation) / max(start_distance, 1e-9)
+    )
+    return fitness

@@ -98,7 +98,8 @@ class PathTerms:
 
     @property
     def safe(self) -> NDArray[np.bool_]:
-        return (self.separation_hits == 0) & (self.clearance_hits == 0)
+        safe: NDArray[np.bool_] = (self.separation_hits == 0) & (self.clearance_hits == 0)
+        return safe
 
 
 def timeline(waypoints: Array, waits: Array, speed: float) -> tuple[Array, Array]:
@@ -127,7 +128,8 @@ def batched_interp(queries: Array, knots: Array, values: Array) -> Array:
     np.clip(frac, 0.0, 1.0, out=frac)
     v0 = flat_v[right - 1]
     out = v0 + frac[:, None] * (flat_v[right] - v0)
-    return out.reshape(*queries.shape, -1)
+    interpolated: NDArray[np.float64] = out.reshape(*queries.shape, -1)
+    return interpolated
 
 
 def separation_terms(

@@ -177,7 +177,7 @@ class PlanningState:
 
     def penalty(self, world: Map) -> float:
         """The cost of a conflict: more than any detour on this map."""
-        return 100.0 * (world.blocked.shape[0] + world.blocked.shape[1] + 10)
+        return float(100.0 * (world.blocked.shape[0] + world.blocked.shape[1] + 10))
 
     def base_cost(self, uav: str) -> float:
         """The objective of `uav`'s current path without any penalty, from its trajectory."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,7 +50,7 @@ class Conflict:
             f"near {where} (clearance {self.separation:.3f}, radius {self.required:.3f})"
         )
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
         return {
             "kind": self.kind,
             "uavs": list(self.uavs),
@@ -209,7 +209,8 @@ def _pairs_square_distance(
 
     def point_to_square(p: NDArray[np.float64]) -> NDArray[np.float64]:
         off = np.maximum(np.abs(p - centre) - 0.5, 0.0)
-        return np.hypot(off[..., 0], off[..., 1])
+        distance: NDArray[np.float64] = np.hypot(off[..., 0], off[..., 1])
+        return distance
 
     candidates = [point_to_square(p0), point_to_square(p1)]
     taus = [np.zeros(n), np.ones(n)]
@@ -261,7 +262,7 @@ def _cells_near(
     if np.any(lo > hi):
         return np.empty((0, 2), dtype=np.int64)
     window = blocked[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
-    cells = np.argwhere(window) + lo
+    cells: NDArray[np.int64] = np.argwhere(window) + lo
     if len(cells) > 8:
         d = p1 - p0
         length2 = float(d @ d)
@@ -295,7 +296,8 @@ def _segment_square_distance(
 
     def point_to_square(p: NDArray[np.float64]) -> NDArray[np.float64]:
         off = np.maximum(np.abs(p - centre) - 0.5, 0.0)
-        return np.hypot(off[..., 0], off[..., 1])
+        distance: NDArray[np.float64] = np.hypot(off[..., 0], off[..., 1])
+        return distance
 
     candidates = [point_to_square(p0), point_to_square(p1)]
     taus = [np.zeros(len(cells)), np.ones(len(cells))]

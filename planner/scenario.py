@@ -7,7 +7,7 @@ square centred on the integer point (x, y). Time is in seconds from a common sta
 from __future__ import annotations
 
 import os
-from typing import Annotated, Self
+from typing import Annotated, Any, Self
 
 import numpy as np
 from numpy.typing import NDArray
@@ -238,7 +238,7 @@ def max_planned_uavs() -> int:
     return min(max(value, MAX_UAVS), PLANNED_UAVS_CEILING)
 
 
-def load_scenario(data: dict | str | bytes, max_uavs: int | None = None) -> Scenario:
+def load_scenario(data: dict[str, Any] | str | bytes, max_uavs: int | None = None) -> Scenario:
     """A validated scenario from a dict or JSON text (pydantic.ValidationError if invalid);
     at most `max_uavs` UAVs (default MAX_UAVS, the most that may be flown; more only for
     planning, at most PLANNED_UAVS_CEILING)."""

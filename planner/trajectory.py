@@ -115,4 +115,5 @@ def merge_collinear(cells: ArrayLike) -> NDArray[np.float64]:
     cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
     same_way = np.einsum("ij,ij->i", d1, d2) > 0
     keep = np.concatenate([[True], ~((np.abs(cross) < 1e-9) & same_way), [True]])
-    return xy[keep]
+    turns: NDArray[np.float64] = xy[keep]
+    return turns

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from importlib.resources import files
+from typing import Any
 
 from planner.scenario import Scenario, load_scenario
 
@@ -10,7 +11,7 @@ CASES = tuple(f"case-{k}" for k in range(1, 7))
 
 # Table III of the paper: Dist(t0), #UAVs as printed, mean deviation, and J for
 # populations 10, 15, 20 and 30.
-PAPER_TABLE_III: dict[str, dict] = {
+PAPER_TABLE_III: dict[str, dict[str, Any]] = {
     "case-1": {"dist": 4.0, "uavs": 2, "deviation": 0.5, "J": (2.0178, 2.1237, 1.9371, 1.9023)},
     "case-2": {"dist": 3.0, "uavs": 3, "deviation": 0.5, "J": (8.8745, 8.7241, 8.2412, 8.0918)},
     "case-3": {

@@ -10,6 +10,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from planner.experiments.case_runs import CaseRecord
@@ -92,7 +93,7 @@ def plot_final_costs(
 
 
 def _dots(
-    ax: plt.Axes,
+    ax: Axes,
     x: int,
     js: list[list[float]],
     colours: np.ndarray,
@@ -123,7 +124,7 @@ def plot_times(table: CaseTable, out: Path) -> Path:
     return _save(fig, out)
 
 
-def _panels(count: int) -> tuple[Figure, list[plt.Axes]]:
+def _panels(count: int) -> tuple[Figure, list[Axes]]:
     cols = min(count, 3)
     rows = -(-count // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 3.4 * rows), squeeze=False)

@@ -52,7 +52,7 @@ class CaseRecord:
     start_distance: float  # Dist(t0) of the UAV that replans first, as in Table III
     history: tuple[float, ...]  # plan cost after every optimizer iteration, all runs in turn
 
-    def outcome(self) -> tuple:
+    def outcome(self) -> tuple[object, ...]:
         """Everything but the wall-clock time: equal whichever executor ran the spec."""
         return (
             self.spec,

@@ -10,6 +10,8 @@ on any machine.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from pydantic import ValidationError
 
@@ -39,7 +41,7 @@ def crossing_scenario(
 
 def _draw(
     rng: np.random.Generator, size: int, uavs: int, obstacle_share: float, objects: int
-) -> dict:
+) -> dict[str, Any]:
     centre = (size - 1) / 2
     radius = centre - 0.5
     angles = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(uavs) / uavs
@@ -97,7 +99,7 @@ def _draw_random(
     obstacle_share: float,
     objects: int,
     min_gap: float = 0.0,
-) -> dict:
+) -> dict[str, Any]:
     cells = [(x, y) for x in range(size) for y in range(size)]
     picks = rng.permutation(len(cells))
     n_obstacles = round(obstacle_share * size * size)
@@ -193,7 +195,7 @@ def short_trips_scenario(
 
 def _draw_short(
     rng: np.random.Generator, size: int, uavs: int, obstacle_share: float, trip: int, gap: float
-) -> dict | None:
+) -> dict[str, Any] | None:
     blocked = rng.random((size, size)) < obstacle_share
     free = np.argwhere(~blocked)
     order = free[rng.permutation(len(free))]

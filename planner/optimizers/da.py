@@ -97,7 +97,8 @@ class DA(Algorithm):
         ) ** (1 / beta)
         u = rng.standard_normal(shape) * sigma
         v = rng.standard_normal(shape)
-        return 0.01 * u / np.abs(v) ** (1 / beta)
+        step: NDArray[np.float64] = 0.01 * u / np.abs(v) ** (1 / beta)
+        return step
 
 
 def _track_enemy(

@@ -23,7 +23,7 @@ def roulette_wheel(
             return np.zeros(size, dtype=np.intp)
         target = rng.random(size) * acc[-1]
     if np.all(steps >= 0):
-        idx = np.searchsorted(acc, target, side="right")
+        idx: NDArray[np.intp] = np.searchsorted(acc, target, side="right")
         idx[(idx >= acc.size) | np.isnan(target)] = 0
         return idx
     hit = acc[None, :] > target[:, None]

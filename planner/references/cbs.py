@@ -123,7 +123,7 @@ def _context() -> ForkContext | SpawnContext:
     return multiprocessing.get_context("spawn")
 
 
-def _run_child(args: tuple, time_limit: float) -> tuple | None:
+def _run_child(args: tuple[Any, ...], time_limit: float) -> tuple[Any, ...] | None:
     """The child's message, or None if it had to be killed at the time limit."""
     ctx = _context()
     receive, send = ctx.Pipe(duplex=False)
@@ -132,7 +132,8 @@ def _run_child(args: tuple, time_limit: float) -> tuple | None:
     send.close()
     try:
         if receive.poll(time_limit + GRACE):
-            return receive.recv()
+            message: tuple[Any, ...] = receive.recv()
+            return message
         return None
     except EOFError:
         return ("failed", f"the CBS process died (exit code {child.exitcode})")

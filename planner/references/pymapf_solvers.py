@@ -59,7 +59,9 @@ def _problem(scenario: Scenario, diagonals: bool) -> Any:
     )
 
 
-def _solve(name: str, scenario: Scenario, solver: Any, diagonals: bool, limit: float):
+def _solve(
+    name: str, scenario: Scenario, solver: Any, diagonals: bool, limit: float
+) -> ReferenceResult:
     problem = _problem(scenario, diagonals)
     started = time.perf_counter()
     try:
