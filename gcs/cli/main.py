@@ -322,7 +322,9 @@ MODULE_COMMANDS = {
 and `run(args) -> int`."""
 
 
-def _add_module_commands(commands: argparse._SubParsersAction, chosen: str | None) -> None:
+def _add_module_commands(
+    commands: argparse._SubParsersAction[argparse.ArgumentParser], chosen: str | None
+) -> None:
     for name, (module_name, help_text) in MODULE_COMMANDS.items():
         sub = commands.add_parser(name, help=help_text, description=help_text)
         if name == chosen:
@@ -336,7 +338,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser(next((a for a in argv if not a.startswith("-")), None))
     args = parser.parse_args(argv)
     try:
-        return args.handler(args)
+        code: int = args.handler(args)
+        return code
     except USER_ERRORS as exc:
         parser.exit(2, f"{parser.prog}: error: {exc}\n")
     except KeyboardInterrupt:

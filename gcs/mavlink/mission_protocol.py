@@ -418,7 +418,8 @@ async def _next_or_none(sub: Subscription, timeout: float) -> Any:
 
 
 def _is_type(msg: Any, mission_type: int) -> bool:
-    return getattr(msg, "mission_type", MISSION_TYPE_MISSION) == mission_type
+    kind: int = getattr(msg, "mission_type", MISSION_TYPE_MISSION)
+    return kind == mission_type
 
 
 def _operation(what: str, mission_type: int) -> str:

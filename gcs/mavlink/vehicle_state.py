@@ -15,7 +15,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.modes import mode_name
 
-MAV_STATE_BOOT = mavlink2.MAV_STATE_BOOT
+MAV_STATE_BOOT: int = mavlink2.MAV_STATE_BOOT
 MAV_MODE_FLAG_SAFETY_ARMED = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
 
 

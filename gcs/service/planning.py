@@ -47,7 +47,7 @@ class PlanningService:
         """Start a job; return it once done or after `wait_s`, whichever comes first. The
         plan keeps `clearance_m` beyond 2R between UAVs (room to stray in flight)."""
         scenario = await self.scenarios.get(scenario_id)
-        job = await self.jobs.add(
+        job: JobRow = await self.jobs.add(
             JobRow(
                 scenario_id=scenario_id,
                 settings={**_settings_json(settings), "clearance_m": clearance_m},
