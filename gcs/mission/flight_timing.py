@@ -13,7 +13,7 @@ schedule the console shows, and the exact safety check judges them.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -91,7 +91,7 @@ class _Vehicle:
     a: float = 0.0
     gate: Gate = Gate.GO
     done: bool = False
-    slowing_for: int | None = None  # the vertex it is slowing down for
+    slowing_for: set[int] = field(default_factory=set)  # the vertices it slows for
     approach_m_s: float = 0.0  # how fast it approaches its limit (CREEP)
 
     @classmethod
@@ -107,27 +107,30 @@ class _Vehicle:
 
     def cap(self, rule: StoppingRule) -> float:
         """The speed the vehicle aims for here: its leg's (or its gate's), until it must
-        slow down for the next vertex, as an S-curve does: from the moment what is left
-        is what slowing down from its speed and acceleration takes, it aims for the
-        vertex's speed (and lets go again if it stops short of it)."""
+        slow down for one of the next two vertices, as an S-curve does: from the moment
+        what is left is what slowing down from its speed and acceleration takes, it aims
+        for the vertex's speed (and lets go again if it stops short of it). The vertex
+        after next counts too: a vertex's speed assumes the vehicle gets there no longer
+        speeding up, which one that sets off just before it is not."""
         if self.gate == Gate.STOP:
             return 0.0
         k = self._next_vertex()
-        if self.slowing_for == k and self.v < STOPPED_M_S:  # stopped for it
-            if self.vertex_s[k] - self.s <= ARRIVED_M:
+        if self.slowing_for and self.v < STOPPED_M_S:  # stopped for it
+            if k in self.slowing_for and self.vertex_s[k] - self.s <= ARRIVED_M:
                 self.s = float(self.vertex_s[k])  # there: on to the next one
                 k = self._next_vertex()
-            self.slowing_for = None  # (or stopped short of it: on again)
+            self.slowing_for.clear()  # (or stopped short of it: on again)
+        self.slowing_for.intersection_update(range(k, len(self.vertex_s)))
         leg = self.leg_speed[max(0, k - 1)] if len(self.leg_speed) else 0.0
         if self.gate == Gate.CREEP:
             leg = min(leg, self.approach_m_s)
-        ahead, gap = float(self.vertex_speed[k]), float(self.vertex_s[k] - self.s)
-        peak = self.v + max(self.a, 0.0) ** 2 / (2 * self.limits.jerk_m_s3)
-        if self.slowing_for != k and peak > ahead:  # (the speed grows while `a` ramps down)
-            needed = self.limits.slowing_distance(self.v, self.a, ahead)
-            if gap <= needed:
-                self.slowing_for = k
-        return min(leg, ahead) if self.slowing_for == k else leg
+        peak = self.v + max(self.a, 0.0) ** 2 / (2 * self.limits.jerk_m_s3)  # once `a` is 0
+        for j in range(k, min(k + 2, len(self.vertex_s))):
+            ahead, gap = float(self.vertex_speed[j]), float(self.vertex_s[j] - self.s)
+            late = gap <= self.limits.slowing_distance(self.v, self.a, ahead)
+            if peak > ahead and late:
+                self.slowing_for.add(j)
+        return min([leg, *(float(self.vertex_speed[j]) for j in self.slowing_for)])
 
     def _next_vertex(self) -> int:
         k = int(np.searchsorted(self.vertex_s, self.s, side="right"))

@@ -163,13 +163,14 @@ def _legs(path: PlannedPath) -> np.ndarray:
     return length / np.maximum(path.arrive[1:] - path.leave[:-1], 1e-9)
 
 
-@pytest.mark.parametrize("first_m", [20.0, 25.0])
+@pytest.mark.parametrize("first_m", [10.0, 15.0, 20.0, 25.0])
 def test_a_vehicle_speeding_up_still_stops_where_its_autopilot_stops(first_m: float) -> None:
     """Speeding up from a standstill, a vehicle below a corner's speed can still be too
     fast for it once its acceleration has ramped down, and then for the stop 20 m on
     (a waypoint before a landing, where ArduCopter comes to rest): it must come to rest
     there, not pass it at speed (it passed at 9 m/s, and the timing came out 15 % short
-    at 10 m/s). (With a first leg shorter than that the model still overshoots.)"""
+    at 10 m/s); so must one that reaches the corner still speeding up (it passed at
+    6 m/s after a first leg of 10 m)."""
     corner = np.array([first_m, 0.0])
     stop = corner + 20.0 * np.array([math.cos(math.radians(30)), math.sin(math.radians(30))])
     xy = np.array([[0.0, 0.0], corner, stop, stop + np.array([0.0, 10.0])])

@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, field_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, TypeAdapter, field_validator
 
 from gcs.mission.build import DEFAULT_ALTITUDE_M
 from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, MAX_SPEED_M_S, TURN_RADIUS_M
@@ -160,6 +160,56 @@ class JobOut(_Out):
     settings: dict[str, Any]
     created_at: UtcDatetime
     updated_at: UtcDatetime
+
+
+class Claimant(BaseModel):
+    """Another address sending as a vehicle's system id (ignored): an impostor, or the
+    vehicle come back through a restarted router (`POST /vehicles/{id}/address`)."""
+
+    address: str
+    packets: int
+    seconds_ago: float
+
+
+class VehicleLive(BaseModel):
+    """A vehicle's live state, as last heard: with the link down (`stale`) every value is
+    the last one heard, `seconds_since_heard` ago."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    online: bool = Field(description="its link is up")
+    stale: bool = Field(description="not heard lately: the values are the last ones heard")
+    sysid: int
+    uid: str | None = Field(description="the board's unique id (AUTOPILOT_VERSION), in hex")
+    autopilot: str = Field(examples=["ardupilot", "px4"])
+    mode: str
+    armed: bool
+    airborne: bool
+    system_status: int = Field(description="MAV_STATE")
+    lat: float | None
+    lon: float | None
+    relative_alt_m: float | None
+    groundspeed_m_s: float
+    heading_deg: float
+    mission_seq: int
+    mission_total: int
+    mission_state: int = Field(description="MISSION_STATE, 0 when the autopilot gives none")
+    ignored_packets: int = Field(description="packets dropped: another sender, bad signature")
+    claimed_from: Claimant | None
+    seconds_since_heard: float | None
+
+
+class VehicleUnheard(BaseModel):
+    """A registered vehicle the service has no link to (yet), and why."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    online: Literal[False]
+    error: str = Field(examples=["cannot connect to tcp:127.0.0.1:5760: ..."])
+
+
+LIVE: TypeAdapter[VehicleLive | VehicleUnheard] = TypeAdapter(VehicleLive | VehicleUnheard)
+"""A registered vehicle's live state, from the registry's dict."""
 
 
 class Problem(BaseModel):

@@ -15,6 +15,7 @@ from fastapi.responses import PlainTextResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from gcs.fleet.events import EventKind
+from gcs.fleet.route_tracker import VehicleProgress
 from gcs.mavlink.mission_item import Mission
 from gcs.mission.files import parse_plan, plan_text, waypoints_text
 from gcs.service.api.deps import (
@@ -26,7 +27,15 @@ from gcs.service.api.deps import (
     mutating,
 )
 from gcs.service.api.live_sockets import send_until_done
-from gcs.service.api.schemas import MAX_PAGE, UNSAFE_SPEED, MissionShape, Problem, UtcDatetime
+from gcs.service.api.schemas import (
+    MAX_PAGE,
+    UNSAFE_SPEED,
+    MissionShape,
+    Problem,
+    UtcDatetime,
+    VehicleLive,
+    VehicleUnheard,
+)
 from gcs.service.flights.active import VehicleAnswer
 from gcs.service.flights.live_queue import LiveQueue
 from gcs.service.flights.service import FlightService
@@ -161,6 +170,46 @@ class EventOut(BaseModel):
     uav_id: str | None
     data: dict[str, Any]
     created_at: UtcDatetime
+
+
+class _Bound(BaseModel):
+    uav_id: str
+    vehicle_id: str
+
+
+PROGRESS = Field(
+    default=None,
+    description="where it is on its plan; absent while the service follows no fleet for "
+    "the flight (before its upload, after a restart)",
+)
+
+
+class FlightVehicleLive(VehicleLive, _Bound):
+    """A vehicle of the flight: the UAV it flies, its live state and its progress."""
+
+    progress: VehicleProgress | None = PROGRESS
+
+
+class FlightVehicleUnheard(VehicleUnheard, _Bound):
+    """A vehicle of the flight that the service has no link to."""
+
+    progress: VehicleProgress | None = PROGRESS
+
+
+class FlightLiveState(BaseModel):
+    """The live stream's periodic `state` message (`GET /flights/{id}/live-state`: once)."""
+
+    type: Literal["state"]
+    flight_id: str
+    state: FlightState
+    pace_factor: float | None = Field(
+        description="the flight's seconds per second of the plan; null when no fleet is "
+        "followed for it"
+    )
+    min_separation_m: float | None = Field(
+        description="the least distance between two of its vehicles so far, from telemetry"
+    )
+    vehicles: list[FlightVehicleLive | FlightVehicleUnheard]
 
 
 def flight_out(row: FlightRow) -> FlightOut:
@@ -302,6 +351,8 @@ async def events(
 @router.get(
     "/{flight_id}/live-state",
     operation_id="flightLiveState",
+    response_model=FlightLiveState,
+    response_model_exclude_unset=True,  # a vehicle's progress is absent, not null, without one
     responses=ANSWERS,
     dependencies=[Controlled],
 )

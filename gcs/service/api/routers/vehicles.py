@@ -20,7 +20,14 @@ from gcs.service.api.deps import (
     mutating,
 )
 from gcs.service.api.routers.flights import VehicleAnswerOut
-from gcs.service.api.schemas import MAX_PAGE, Problem, UtcDatetime
+from gcs.service.api.schemas import (
+    LIVE,
+    MAX_PAGE,
+    Problem,
+    UtcDatetime,
+    VehicleLive,
+    VehicleUnheard,
+)
 from gcs.service.states import StateConflict
 from gcs.service.storage.tables import VehicleRow
 from gcs.service.vehicle_registry import VehicleRegistry, describe
@@ -70,7 +77,7 @@ class VehicleOut(BaseModel):
     sysid: int | None
     signed: bool = Field(description="MAVLink 2 signing is on for this vehicle")
     created_at: UtcDatetime
-    live: dict[str, Any] = Field(description="the vehicle's state as last heard")
+    live: VehicleLive | VehicleUnheard = Field(description="the vehicle's state as last heard")
 
 
 class AlreadyRegistered(Exception):
@@ -85,7 +92,7 @@ class DiscoveredOut(BaseModel):
     sysid: int
     connection: str = Field(description="register it with this and its sysid")
     vehicle_id: str | None = Field(description="the registered vehicle it is, if any")
-    live: dict[str, Any]
+    live: VehicleLive
 
 
 def _out(row: VehicleRow, registry: VehicleRegistry) -> VehicleOut:
@@ -96,7 +103,7 @@ def _out(row: VehicleRow, registry: VehicleRegistry) -> VehicleOut:
         sysid=row.sysid,
         signed=row.signing_key is not None,
         created_at=row.created_at,
-        live=registry.state(row.id),
+        live=LIVE.validate_python(registry.state(row.id)),
     )
 
 
@@ -186,7 +193,7 @@ async def list_discovered(vehicles: VehiclesDep, registry: RegistryDep) -> list[
             sysid=sysid,
             connection=discovery.url,
             vehicle_id=registered.get((discovery.url, sysid)),
-            live=describe(link),
+            live=VehicleLive.model_validate(describe(link)),
         )
         for sysid, link in sorted(discovery.links.items())
     ]
