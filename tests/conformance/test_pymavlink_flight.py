@@ -131,6 +131,7 @@ def test_square_mission_is_flown_and_landed_at_the_last_waypoint(autopilot):
         else:  # PX4 reports every navigation item, the landing too, and repeats them
             assert sorted(set(reached)) == list(range(6))
         final = sim.final_position(1)
+        assert final is not None
         land_e, land_n, _ = pymap3d.geodetic2enu(final.lat, final.lon, HOME[2], *HOME)
         assert math.hypot(land_e, land_n) <= ACCEPT_RADIUS_M
         assert final.alt == 0.0
@@ -155,7 +156,7 @@ def test_two_vehicles_separation_is_recorded():
             sim._call(vehicle.flight.takeoff, 10.0, sim.sim_time)
         assert sim.wait_until(lambda: min(sim.state(s).alt for s in (1, 2)) > 9.0, 5.0)
     separation = sim.min_separation()
-    assert separation.sysids == (1, 2)
+    assert separation is not None and separation.sysids == (1, 2)
     assert separation.distance_m == pytest.approx(30.0, abs=0.01)
     east, _, _ = pymap3d.geodetic2enu(separation.lat, separation.lon, HOME[2], *HOME)
     assert east == pytest.approx(15.0, abs=0.1)
@@ -198,6 +199,7 @@ def test_mvo_gcs_sitl_prints_connection_strings_and_exits_cleanly_on_sigint(tmp_
     proc = subprocess.Popen(
         [str(exe), *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
+    assert proc.stdout is not None
     try:
         lines = [proc.stdout.readline().strip() for _ in range(3)]
         assert [line.split(":")[0] for line in lines] == ["vehicle 1", "vehicle 2", "vehicle 3"]

@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import socket
 import time
+from typing import Any
 
 os.environ["MAVLINK20"] = "1"
 from pymavlink import mavutil
@@ -27,7 +28,7 @@ def free_udp_port() -> int:
         return int(probe.getsockname()[1])
 
 
-def heard(link: mavutil.mavfile, timeout: float) -> dict[int, object]:
+def heard(link: mavutil.mavfile, timeout: float) -> dict[int, Any]:
     """The first HEARTBEAT of each system id heard within `timeout` wall seconds."""
     found: dict[int, object] = {}
     deadline = time.monotonic() + timeout

@@ -7,7 +7,8 @@ import itertools
 import os
 import time
 from collections.abc import Callable, Iterator
-from typing import NamedTuple
+from contextlib import AbstractContextManager
+from typing import Any, NamedTuple
 
 import pytest
 
@@ -74,8 +75,9 @@ class Gcs:
         self,
         types: str | list[str],
         timeout: float = 2.0,
-        where: Callable[[object], bool] = lambda m: True,
-    ):
+        where: Callable[..., bool] = lambda m: True,
+    ) -> Any:
+        """The first message of `types` that `where` accepts (a pymavlink message), or None."""
         deadline = time.monotonic() + timeout
         while (remaining := deadline - time.monotonic()) > 0:
             msg = self.link.recv_match(type=types, blocking=True, timeout=remaining)
@@ -91,7 +93,9 @@ class Gcs:
                 found.append(msg)
         return found
 
-    def command(self, command: int, *params: float, confirmation: int = 0, timeout: float = 2.0):
+    def command(
+        self, command: int, *params: float, confirmation: int = 0, timeout: float = 2.0
+    ) -> Any:
         padded = [*params, *[0.0] * (7 - len(params))]
         self.link.mav.command_long_send(self.target, 1, command, confirmation, *padded)
         return self.recv("COMMAND_ACK", timeout, where=lambda m: m.command == command)
@@ -158,7 +162,7 @@ class Gcs:
             count = self.recv("MISSION_COUNT", retry_s)
         if count is None:
             return None
-        items = []
+        items: list[Any] = []
         kind = "MISSION_ITEM" if legacy else "MISSION_ITEM_INT"
         request = (
             self.link.mav.mission_request_send if legacy else self.link.mav.mission_request_int_send
@@ -200,7 +204,7 @@ def wait_booted(gcs: Gcs, timeout: float = 5.0) -> bool:
 
 @pytest.fixture
 def make_sim() -> Iterator[Callable[..., tuple[Simulator, Gcs]]]:
-    stack: list[tuple[object, Gcs]] = []
+    stack: list[tuple[AbstractContextManager[Simulator], Gcs]] = []
 
     def start(
         autopilot: str = "ardupilot",

@@ -8,6 +8,7 @@ import hashlib
 import os
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 
@@ -42,7 +43,7 @@ def client(sim: Simulator, key: bytes | None) -> mavutil.mavfile:
     return link
 
 
-def ack_for(link: mavutil.mavfile, command: int) -> object | None:
+def ack_for(link: mavutil.mavfile, command: int) -> Any:
     deadline = time.monotonic() + ANSWER_S
     while (remaining := deadline - time.monotonic()) > 0:
         msg = link.recv_match(type="COMMAND_ACK", blocking=True, timeout=remaining)

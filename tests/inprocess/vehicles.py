@@ -11,7 +11,7 @@ from gcs.mission.geodesy import GridFrame
 from planner.scenario import Scenario
 from sitl_mock import Faults, Simulator, VehicleConfig
 
-FAST_BOOT = {"estimate_delay_s": 6.0, "position_delay_s": 3.0}
+FAST_BOOT: dict[str, Any] = {"estimate_delay_s": 6.0, "position_delay_s": 3.0}
 """ArduCopter's boot squeezed (41.5 s to arm at speed-up 1 on real SITL): the tests that
 are about the boot say so; the rest need not wait for it, even in virtual time."""
 

@@ -9,6 +9,8 @@ tests/e2e/test_discovery.py.
 
 from __future__ import annotations
 
+from typing import Any
+
 import httpx
 import pytest
 
@@ -106,7 +108,7 @@ async def test_another_address_sending_as_a_flying_vehicle_is_an_event(
     for _ in range(3):
         link.connection._received(forged(link.sysid), ("127.0.0.9", 4444))  # as a socket would
 
-    async def claimed() -> list[dict[str, object]]:
+    async def claimed() -> list[dict[str, Any]]:
         return [e for e in await flight.events() if e["kind"] == "AddressClaimed"]
 
     [event] = await until(claimed, 30, "the claim in the flight's events")

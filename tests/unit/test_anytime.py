@@ -1,5 +1,7 @@
 """The anytime planner: time budget, convergence, first safe plan, improvement, stop reason."""
 
+from typing import Any
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -49,7 +51,7 @@ def test_the_first_safe_plan_does_not_depend_on_the_budget(name: str) -> None:
     """A budget that runs out at once still gives the safe start, the same one as no
     budget at all: however loaded the machine, the first safe plan is the same."""
     scenario = _fleet(name)
-    start_only = {"improve_rounds": 0, "seed": 3}
+    start_only: dict[str, Any] = {"improve_rounds": 0, "seed": 3}
     hurried = plan(scenario, PlannerSettings(time_budget_s=1e-6, **start_only))
     calm = plan(scenario, PlannerSettings(time_budget_s=None, **start_only))
     assert hurried.feasible and _safe(scenario, hurried)
@@ -82,11 +84,12 @@ def test_more_improvement_never_makes_a_plan_worse(seed: int, rounds: int) -> No
     """The anytime property without a clock: one more round of improvement (what more
     budget buys) starts from the same first safe plan and can only lower the cost."""
     scenario = random_scenario(seed, size=24, uavs=12, objects=2)
-    base = {"seed": seed, "population": 10, "iterations": 30, "time_budget_s": None}
+    base: dict[str, Any] = {"seed": seed, "population": 10, "iterations": 30, "time_budget_s": None}
     fewer = plan(scenario, PlannerSettings(improve_rounds=rounds, **base))
     more = plan(scenario, PlannerSettings(improve_rounds=rounds + 1, **base))
     assert fewer.feasible and more.feasible and _safe(scenario, more)
     assert more.metrics.first_safe_cost == fewer.metrics.first_safe_cost
+    assert more.metrics.cost is not None and fewer.metrics.cost is not None
     assert more.metrics.cost <= fewer.metrics.cost + 1e-9
 
 
@@ -94,6 +97,7 @@ def test_first_safe_plan_and_improvement_are_reported() -> None:
     result = plan(crossing_scenario(1), PlannerSettings(time_budget_s=3.0))
     m = result.metrics
     assert result.feasible and m.first_safe_s is not None and m.first_safe_s <= m.seconds
+    assert m.cost is not None and m.first_safe_cost is not None and m.improvement is not None
     assert m.cost <= m.first_safe_cost + 1e-9
     expected = (m.first_safe_cost - m.cost) / m.first_safe_cost
     assert m.improvement == pytest.approx(expected, abs=1e-5)  # rounded to 6 places
@@ -105,8 +109,8 @@ def test_first_safe_plan_and_improvement_are_reported() -> None:
 def test_progress_shows_budget_best_cost_and_first_safe_time() -> None:
     seen: list[PlanProgress] = []
     plan(crossing_scenario(2), PlannerSettings(time_budget_s=2.0), progress=seen.append)
-    percent = [p.budget_percent for p in seen]
-    assert all(p is not None and 0 <= p <= 100 for p in percent)
+    percent = [p.budget_percent for p in seen if p.budget_percent is not None]
+    assert len(percent) == len(seen) and all(0 <= p <= 100 for p in percent)
     assert percent == sorted(percent)
     best = [p.best_cost for p in seen if p.best_cost is not None]
     assert best and best == sorted(best, reverse=True)

@@ -1,17 +1,29 @@
+from typing import Any
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import planner
-from planner import ALGORITHMS, ObjectiveError, OptimizerInputError, UnknownAlgorithmError
+from planner import (
+    ALGORITHMS,
+    ObjectiveError,
+    OptimizeResult,
+    OptimizerInputError,
+    UnknownAlgorithmError,
+)
 from planner.benchmarks import sphere
 
 NAMES = sorted(ALGORITHMS)
 
 
-def run(name: str, seed: int = 0, **kwargs):
-    options = {"population": 12, "iterations": 40, "rng": np.random.default_rng(seed)}
+def run(name: str, seed: int = 0, **kwargs: Any) -> OptimizeResult:
+    options: dict[str, Any] = {
+        "population": 12,
+        "iterations": 40,
+        "rng": np.random.default_rng(seed),
+    }
     options.update(kwargs)
     return planner.optimize(name, sphere, -np.ones(4) * 5, np.ones(4) * 5, **options)
 
@@ -87,7 +99,8 @@ def test_callback_sees_every_iteration_and_can_stop(name: str) -> None:
 def test_nfe_to_reach() -> None:
     result = run("gwo", iterations=200)
     target = result.history[50]
-    assert result.nfe_to_reach(target) <= 12 * 51
+    reached = result.nfe_to_reach(target)
+    assert reached is not None and reached <= 12 * 51
     assert result.nfe_to_reach(-1.0) is None
 
 
@@ -128,8 +141,8 @@ def test_bad_bounds(lower, upper, message: str) -> None:
         ({"algorithm": "pso"}, "unknown algorithm 'pso'; choose one of alo, da, gwo"),
     ],
 )
-def test_bad_budget(kwargs: dict, message: str) -> None:
-    options = {
+def test_bad_budget(kwargs: dict[str, Any], message: str) -> None:
+    options: dict[str, Any] = {
         "algorithm": "mvo",
         "population": 5,
         "iterations": 3,

@@ -1,17 +1,20 @@
 """Algorithm 1 end to end, on the paper's cases and on generated scenarios."""
 
+from typing import Any
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planner.cases import CASES, PAPER_TABLE_III, load_case
-from planner.pipeline import PlannerSettings, plan
+from planner.objectives import ObjectiveName
+from planner.pipeline import PlannerSettings, PlanProgress, plan
 from planner.plan import Plan
 from planner.scenario import load_scenario
 from planner.trajectory import Trajectory
 
-FAST = {"population": 20, "iterations": 150}
+FAST: dict[str, Any] = {"population": 20, "iterations": 150}
 
 
 def independent_check(result: Plan, radii: dict[str, float], blocked: set) -> list[str]:
@@ -146,7 +149,7 @@ def test_any_feasible_plan_passes_an_independent_check(data: dict, seed: int) ->
 def test_progress_reports_every_iteration_of_every_run() -> None:
     # Runs now stop when they converge, so a run may report fewer than `iterations`; the
     # safe start's and re-timing's steps are runs of one step that evaluate no population.
-    seen = []
+    seen: list[PlanProgress] = []
     result = plan(load_case("case-5"), PlannerSettings(**FAST), progress=seen.append)
     assert len(seen) == result.metrics.iterations_run == len(result.history)
     searched = [p for p in seen if p.reason not in ("safe start", "re-time")]
@@ -161,7 +164,7 @@ def test_progress_reports_every_iteration_of_every_run() -> None:
 
 
 def test_iterations_only_runs_every_iteration_of_every_run() -> None:
-    seen = []
+    seen: list[PlanProgress] = []
     settings = PlannerSettings(**FAST).iterations_only()
     result = plan(load_case("case-5"), settings, progress=seen.append)
     assert len(seen) == result.metrics.replans * FAST["iterations"] == len(result.history)
@@ -172,7 +175,7 @@ def test_iterations_only_runs_every_iteration_of_every_run() -> None:
 
 @pytest.mark.parametrize("algorithm", ["alo", "da", "gwo", "mfo", "mvo", "woa"])
 @pytest.mark.parametrize("objective", ["qos", "paper"])
-def test_every_optimizer_drives_either_objective(algorithm: str, objective: str) -> None:
+def test_every_optimizer_drives_either_objective(algorithm: str, objective: ObjectiveName) -> None:
     seen: list = []
     result = plan(
         load_case("case-1"), PlannerSettings(algorithm, objective, 3, 10, 40), seen.append

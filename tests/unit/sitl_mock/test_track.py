@@ -20,6 +20,7 @@ def test_separation_is_the_minimum_over_airborne_pairs_only():
     monitor.update(3.0, positions + np.array([[0, 0], [10, 0], [0, 0]]), airborne)
     frame = LocalFrame(47.0, 8.0)
     result = monitor.result(frame.to_geodetic)
+    assert result is not None
     assert result.distance_m == pytest.approx(3.0)
     assert result.t == 2.0 and result.sysids == (1, 2)
     east, north = frame.to_local(result.lat, result.lon)
@@ -46,7 +47,8 @@ def test_tracks_per_vehicle_and_the_log_file(tmp_path):
     recorder.close()
     track = recorder.track(7)
     assert [p.alt for p in track] == [0.0, 10.0, 20.0]
-    assert recorder.final(4).armed is True and recorder.final(4).lat == 1.0
+    final = recorder.final(4)
+    assert final is not None and final.armed is True and final.lat == 1.0
     lines = [json.loads(line) for line in log.read_text().splitlines()]
     assert len(lines) == 6
     assert lines[-1] == {"t": 0.2, "sysid": 7, "lat": 2.0, "lon": 4.0, "alt": 20.0, "armed": False}
