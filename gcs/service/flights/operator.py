@@ -84,7 +84,7 @@ class OperatorCommands:
             return _answers(row, outcomes, asked)
 
     async def hold(self, flight_id: str) -> list[VehicleAnswer]:
-        """The operator's fleet hold (also `/pause`): every vehicle stops where it is. During
+        """The operator's fleet hold (`/pause`): every vehicle stops where it is. During
         the start, or when a start goes ahead of it, the start is cancelled first."""
         asked = _now()
         slot = self.book.slot(flight_id)
@@ -119,8 +119,8 @@ class OperatorCommands:
             self.watch_until_down(flight_id)
             return _answers(row, outcomes, asked)
 
-    async def resume(self, flight_id: str) -> list[VehicleAnswer]:
-        """Lift the operator's hold on every vehicle (also `/continue`)."""
+    async def continue_(self, flight_id: str) -> list[VehicleAnswer]:
+        """Lift the operator's hold on every vehicle (`/continue`)."""
         asked = _now()
         async with self.book.slot(flight_id).serial():
             row = await self.book.row(flight_id)

@@ -296,9 +296,11 @@ async def pause(flight_id: str, flights: FlightsDep, operator: OperatorDep) -> F
 
 
 @router.post("/{flight_id}/continue", operation_id="continueFlight", **_controlled(ANSWERS))
-async def resume(flight_id: str, flights: FlightsDep, operator: OperatorDep) -> FlightAction:
+async def continue_flight(
+    flight_id: str, flights: FlightsDep, operator: OperatorDep
+) -> FlightAction:
     """Lift the operator's hold on every vehicle of a paused (or flying) flight."""
-    return await _action(flights, flight_id, await operator.resume(flight_id))
+    return await _action(flights, flight_id, await operator.continue_(flight_id))
 
 
 @router.post("/{flight_id}/abort", operation_id="abortFlight", **_controlled(ANSWERS))
