@@ -106,6 +106,7 @@ def test_mavproxy_with_its_defaults_loads_our_waypoints_file(
 ) -> None:
     path = tmp_path / "uav.waypoints"
     write_waypoints(mission, path)
+    assert mission.home is not None
     sim = Simulator([VehicleConfig(sysid=1, transport="tcp", home=mission.home)], speedup=SPEEDUP)
     with sim.running():
         proxy = MavProxy(sim.connection_string(1), tmp_path)
@@ -123,6 +124,7 @@ def test_mavproxy_listening_on_udp_sees_every_vehicle_sent_there(
 ) -> None:
     port = free_udp_port()
     out = (f"udp:127.0.0.1:{port}",)
+    assert mission.home is not None
     configs = [
         VehicleConfig(sysid=k, transport="tcp", home=mission.home, outputs=out) for k in (1, 2, 3)
     ]

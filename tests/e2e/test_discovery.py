@@ -9,6 +9,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 from gcs.mavlink.connection import RELOCK_AFTER_S
 from gcs.mavlink.recent import SENDER_LIMIT
@@ -44,6 +45,7 @@ def test_the_service_discovers_vehicles_that_send_to_its_port(tmp_path: Path) ->
                     30,
                     "three vehicles heard",
                 )
+                assert isinstance(found, list)
                 assert [v["sysid"] for v in found] == [1, 2, 3]
                 assert {v["connection"] for v in found} == {listen}
                 assert all(v["vehicle_id"] is None for v in found)
@@ -166,8 +168,8 @@ def test_a_silent_vehicle_on_the_listening_port_is_not_taken_over(tmp_path: Path
                 assert answer.status_code == 201, answer.text
                 vid = answer.json()["id"]
 
-                def live() -> dict[str, object]:
-                    body: dict[str, object] = client.get(f"/vehicles/{vid}").json()["live"]
+                def live() -> dict[str, Any]:
+                    body: dict[str, Any] = client.get(f"/vehicles/{vid}").json()["live"]
                     return body
 
                 wait_for(lambda: live()["online"] and live()["lat"], 30, "the vehicle heard")

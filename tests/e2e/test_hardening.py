@@ -20,6 +20,7 @@ import httpx
 import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
+from websockets.typing import Origin
 
 from sitl_mock import Simulator, VehicleConfig
 from tests.e2e.flying import wait_for
@@ -68,9 +69,9 @@ def test_a_websocket_from_a_foreign_origin_is_refused(service: ServiceProcess) -
     url = service.url.replace("http", "ws") + "/jobs/nope/live"
     for foreign in ("http://rebind.example", "http://127.0.0.1:9999", "file://"):
         with pytest.raises(InvalidStatus):  # another site, another local web app, a file
-            connect(url, origin=foreign, open_timeout=10)  # type: ignore[arg-type]
+            connect(url, origin=Origin(foreign), open_timeout=10)
     ours = f"http://127.0.0.1:{service.port}"
-    socket_ = connect(url, origin=ours, open_timeout=10)  # type: ignore[arg-type]
+    socket_ = connect(url, origin=Origin(ours), open_timeout=10)
     with socket_, pytest.raises(ConnectionClosed) as closed:
         socket_.recv(timeout=10)
     assert closed.value.rcvd is not None and closed.value.rcvd.code == 4404  # no such job

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import AsyncIterator, Callable, Iterator
+from typing import Any
 
 import pytest
 
@@ -56,7 +57,7 @@ async def links() -> AsyncIterator[Callable[..., object]]:
     opened: list[VehicleLink] = []
 
     async def connect(
-        sim: Simulator, sysid: int, settings: LinkSettings = FAST_LINK, **kwargs: object
+        sim: Simulator, sysid: int, settings: LinkSettings = FAST_LINK, **kwargs: Any
     ) -> VehicleLink:
         link = await client.connect(sim.connection_string(sysid), settings=settings, **kwargs)
         opened.append(link)

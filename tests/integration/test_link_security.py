@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import socket
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -69,7 +69,7 @@ async def test_a_udpout_socket_binds_loopback(simulator, links) -> None:
     sim = simulator([vehicle(1)])
     link = await links(sim, 1)
     transport = link.connection._transport
-    host = transport._transport.get_extra_info("sockname")[0]  # type: ignore[union-attr]
+    host = transport._transport.get_extra_info("sockname")[0]
     assert host == "127.0.0.1"
 
 
@@ -130,7 +130,7 @@ async def test_a_signing_link_ignores_unsigned_telemetry(simulator, spoofer) -> 
         await link.close()
 
 
-async def _until(condition, timeout: float) -> None:  # type: ignore[no-untyped-def]
+async def _until(condition: Callable[[], bool], timeout: float) -> None:
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout
     while not condition():

@@ -48,6 +48,7 @@ async def test_an_object_on_one_path_replans_only_that_uav(gcs: InProcessService
         return clock if clock > 0.5 else None
 
     now = await until(under_way, 120, "the flight under way")
+    assert now is not None
     uav3 = next(u for u in plan["plan"]["uavs"] if u["id"] == "uav3")
     ahead = Trajectory(np.array(uav3["trajectory"])).at([now + 2.0])[0]
     cell = [round(float(ahead[0])), round(float(ahead[1]))]

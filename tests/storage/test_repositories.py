@@ -105,10 +105,13 @@ async def test_vehicles_one_per_endpoint_and_system_id(db: Database) -> None:
     one = await vehicles.add(VehicleRow(name="a", connection="tcp:127.0.0.1:5760", sysid=1))
     two = await vehicles.add(VehicleRow(name="b", connection="tcp:127.0.0.1:5760", sysid=2))
     anyone = await vehicles.add(VehicleRow(name="c", connection="udpin:127.0.0.1:14551"))
-    assert (await vehicles.by_connection("tcp:127.0.0.1:5760", 2)).id == two.id
-    assert (await vehicles.by_connection("tcp:127.0.0.1:5760", None)).id == one.id
+    found = [
+        await vehicles.by_connection("tcp:127.0.0.1:5760", 2),
+        await vehicles.by_connection("tcp:127.0.0.1:5760", None),
+        await vehicles.by_connection("udpin:127.0.0.1:14551", 7),
+    ]
+    assert [row.id if row else None for row in found] == [two.id, one.id, anyone.id]
     assert await vehicles.by_connection("tcp:127.0.0.1:5760", 3) is None
-    assert (await vehicles.by_connection("udpin:127.0.0.1:14551", 7)).id == anyone.id
     assert await vehicles.by_connection("tcp:127.0.0.1:5770", 1) is None
     with pytest.raises(IntegrityError):
         await vehicles.add(VehicleRow(name="again", connection="tcp:127.0.0.1:5760", sysid=1))

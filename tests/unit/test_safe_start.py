@@ -109,7 +109,8 @@ def test_a_safe_interval_schedule_is_exactly_safe_and_never_too_fast(seed: int, 
 
 def test_a_schedule_hovers_only_when_it_must_and_about_as_little_as_waiting_at_the_start() -> None:
     path = np.array([(0.0, 5.0), (10.0, 5.0)])
-    assert schedule(path, 1.0, 0.3, []).end_time == pytest.approx(10.0)  # no one about
+    alone = schedule(path, 1.0, 0.3, [])
+    assert alone is not None and alone.end_time == pytest.approx(10.0)  # no one about
     crossing = Mover(Trajectory.from_waypoints([(5, 0), (5, 10)], 1.0), 0.3, 1.0)
     flight = schedule(path, 1.0, 0.3, [crossing])
     assert flight is not None and flight.end_time > 10.0
