@@ -166,7 +166,7 @@ class EventOut(BaseModel):
     `kind` and, for a fleet event, `at`, the loop time it happened)."""
 
     id: int
-    kind: EventKind
+    kind: EventKind | str  # one this version does not know (a newer service's) as it is
     uav_id: str | None
     data: dict[str, Any]
     created_at: UtcDatetime
