@@ -61,7 +61,9 @@ def _point(lon: float, lat: float, **properties: Any) -> Feature:
 # ---------------------------------------------------------------- QGroundControl .plan
 
 
-def from_plan_files(paths: list[Path], cell_size_m: float, name: str | None = None) -> dict:
+def from_plan_files(
+    paths: list[Path], cell_size_m: float, name: str | None = None
+) -> dict[str, Any]:
     """The geographic scenario of `.plan` files, one UAV per file, named by the file's stem."""
     documents: dict[str, Any] = {}
     for path in paths:
@@ -72,7 +74,9 @@ def from_plan_files(paths: list[Path], cell_size_m: float, name: str | None = No
     return from_plans(documents, cell_size_m, name)
 
 
-def from_plans(documents: Mapping[str, Any], cell_size_m: float, name: str | None = None) -> dict:
+def from_plans(
+    documents: Mapping[str, Any], cell_size_m: float, name: str | None = None
+) -> dict[str, Any]:
     """The geographic scenario of `.plan` documents keyed by UAV id (see the module)."""
     if not documents:
         raise GeographicError(None, "no .plan file given")
@@ -204,7 +208,7 @@ def is_kml(content_type: str | None) -> bool:
     return (content_type or "").split(";")[0].strip().lower() == KML_MEDIA_TYPE
 
 
-def from_kml(text: str | bytes, cell_size_m: float | None = None) -> dict:
+def from_kml(text: str | bytes, cell_size_m: float | None = None) -> dict[str, Any]:
     """The geographic scenario a KML document draws (see the module for its conventions);
     `cell_size_m` overrides the document's."""
     data = text.encode() if isinstance(text, str) else text
@@ -259,7 +263,9 @@ def _data(feature: Any) -> dict[str, str]:
     return {e.name: e.value for e in elements if getattr(e, "name", None)}
 
 
-def _kml_numbers(data: dict[str, str], names: tuple[str, ...] = _KML_DOCUMENT_NUMBERS) -> dict:
+def _kml_numbers(
+    data: dict[str, str], names: tuple[str, ...] = _KML_DOCUMENT_NUMBERS
+) -> dict[str, Any]:
     numbers: dict[str, Any] = {}
     for key in names:
         if key in data:

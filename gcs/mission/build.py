@@ -67,7 +67,7 @@ class Route:
     @property
     def speeds(self) -> Floats:
         """Cells per second of each leg, shape (k - 1,)."""
-        length = np.hypot(*np.diff(self.xy, axis=0).T)
+        length: Floats = np.hypot(*np.diff(self.xy, axis=0).T)
         return length / (self.arrive[1:] - self.arrive[:-1] - self.hold[:-1])
 
     def without_holds(self) -> Route:

@@ -225,7 +225,7 @@ class _Checker:
         if value != expected:
             raise self.error(f"{prefix}{key} is {value!r}, expected {expected!r}")
 
-    def numbers(self, values: list, count: int, item: int | None = None) -> list[float]:
+    def numbers(self, values: list[Any], count: int, item: int | None = None) -> list[float]:
         """`count` numbers, null read as NaN (QGC writes NaN as null)."""
         ok = len(values) == count and all(
             v is None or (isinstance(v, int | float) and not isinstance(v, bool)) for v in values

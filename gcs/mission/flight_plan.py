@@ -264,7 +264,7 @@ def _along(path: PlannedPath, point: Floats) -> float:
 
 def _leg_speeds(path: PlannedPath) -> Floats:
     """m/s of each leg of a path on the plan's clock."""
-    length = np.hypot(*np.diff(path.xy, axis=0).T)
+    length: Floats = np.hypot(*np.diff(path.xy, axis=0).T)
     return length / np.maximum(path.arrive[1:] - path.leave[:-1], 1e-9)
 
 
