@@ -153,11 +153,11 @@ class Fleet:
 
     # --- the operator --------------------------------------------------------------------
 
-    async def pause(self, uav_ids: set[str] | None = None) -> dict[str, VehicleOutcome[str]]:
+    async def hold(self, uav_ids: set[str] | None = None) -> dict[str, VehicleOutcome[str]]:
         """The operator's hold (all vehicles if `uav_ids` is None)."""
         return await interventions.hold(self.crew, uav_ids)
 
-    async def resume(self, uav_ids: set[str] | None = None) -> dict[str, VehicleOutcome[None]]:
+    async def continue_(self, uav_ids: set[str] | None = None) -> dict[str, VehicleOutcome[None]]:
         """The operator's continue."""
         return await interventions.continue_(self.crew, uav_ids)
 

@@ -97,7 +97,7 @@ class OperatorCommands:
                 return await self._hold_the_start(flight_id, asked)
             active = self.book.active.get(flight_id)
             if state in (F.FLYING, F.PAUSED) and active is not None:
-                outcomes = await active.fleet.pause()
+                outcomes = await active.fleet.hold()
                 if state == F.FLYING:
                     await self.book.transition(flight_id, F.PAUSED, "held by the operator")
             elif state.is_open:
@@ -131,7 +131,7 @@ class OperatorCommands:
                     f"flight {flight_id} is {state.value}: only a flying or paused flight "
                     "continues (abort, or command the vehicles one by one)"
                 )
-            outcomes = await active.fleet.resume()
+            outcomes = await active.fleet.continue_()
             if state == F.PAUSED:
                 await self.book.transition(flight_id, F.FLYING, "continued by the operator")
             return _answers(row, outcomes, asked)
@@ -291,9 +291,9 @@ class OperatorCommands:
 async def _in_fleet(active: ActiveFlight, uav: str, action: VehicleAction) -> VehicleOutcome[Any]:
     fleet = active.fleet
     if action == "hold":
-        return (await fleet.pause({uav}))[uav]
+        return (await fleet.hold({uav}))[uav]
     if action == "continue":
-        return (await fleet.resume({uav}))[uav]
+        return (await fleet.continue_({uav}))[uav]
     return await fleet.withdraw(uav, action)
 
 
