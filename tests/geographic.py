@@ -176,8 +176,8 @@ def placemark(name: str, geometry: str, **data: Any) -> str:
     return f"<Placemark><name>{name}</name>{extended}{geometry}</Placemark>"
 
 
-def kml_polygon(*rings: list[tuple[float, float]]) -> str:
-    def coordinates(points: list[tuple[float, float]]) -> str:
+def kml_polygon(*rings: Metres) -> str:
+    def coordinates(points: Metres) -> str:
         closed = [*points, points[0]]
         return " ".join(",".join(str(c) for c in lon_lat(e, n)) for e, n in closed)
 

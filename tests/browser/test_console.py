@@ -20,7 +20,7 @@ import httpx
 import numpy as np
 import pytest
 
-from gcs.fleet.events import FlightEnded
+from gcs.fleet.events import FlightEnded, FlightOutcome
 from gcs.mission.geodesy import GridFrame
 from gcs.service.flights.active import event_json
 from gcs.service.settings import Settings
@@ -361,7 +361,7 @@ def test_look_back_reads_every_stored_event_of_a_long_flight(
         flight = Flight.make(client, vehicles, "case-6")
     stored = 10_500
     database = Database(Settings(data_dir=service.data_dir).resolved_database_url)
-    ended = FlightEnded(True, 6.54, ("uav1", "uav3"), "landed")
+    ended = FlightEnded(True, 6.54, ("uav1", "uav3"), FlightOutcome.LANDED)
     with database.session() as s:
         s.add_all(
             EventRow(

@@ -18,7 +18,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncGenerator, AsyncIterator, Awaitable, Callable
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -116,7 +116,9 @@ async def vehicle(request: pytest.FixtureRequest) -> AsyncIterator[Vehicle]:
 
 
 async def first(
-    stream: AsyncIterator[T], accept: Callable[[T], bool] = lambda _: True, timeout: float = WAIT_S
+    stream: AsyncGenerator[T, None],
+    accept: Callable[[T], bool] = lambda _: True,
+    timeout: float = WAIT_S,
 ) -> T:
     """The first value of a MAVSDK subscription that `accept`s, within `timeout` seconds."""
     async with contextlib.aclosing(stream), asyncio.timeout(timeout):

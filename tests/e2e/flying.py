@@ -10,7 +10,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, Literal, TypeVar
 
 import httpx
 
@@ -41,8 +41,14 @@ def fleet_at_starts(
     return Simulator(configs, speedup=speedup, seed=1)
 
 
-def wait_for(condition: Callable[[], T], timeout: float, what: str, every: float = 0.05) -> T:
-    """The first truthy value of `condition()`, polled; AssertionError after `timeout`."""
+def wait_for(
+    condition: Callable[[], T | Literal[False] | None],
+    timeout: float,
+    what: str,
+    every: float = 0.05,
+) -> T:
+    """The first truthy value of `condition()`, polled; AssertionError after `timeout`.
+    (A condition's False or None is waited past, so it is no part of the value's type.)"""
     deadline = time.monotonic() + timeout
     while True:
         value = condition()
@@ -97,7 +103,7 @@ class Flight:
         self.upload()
         answer = self.post("start")
         assert answer.status_code == 202, answer.text
-        self.wait_state("flying", 90)
+        self.wait_state("flying", timeout=90)
 
     def wait_state(self, *states: str, timeout: float = 120) -> str:
         try:

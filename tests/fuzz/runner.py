@@ -134,9 +134,16 @@ _plain_run_plan = planning_pool.run_plan
 
 
 def _memoised_run_plan(
-    job_id: str, scenario: dict[str, Any], settings: dict[str, Any], progress: Any, cancelled: Any
+    job_id: str,
+    scenario: dict[str, Any],
+    settings: dict[str, Any],
+    progress: Any,
+    cancelled: Any,
+    *,
+    cancel_each_iteration: bool = False,
 ) -> dict[str, Any]:
-    """The planner, once per scenario and settings in this process (plans are pure)."""
+    """The planner, once per scenario and settings in this process (plans are pure; run_plan's
+    signature, its progress and cancellation unused)."""
     return _memo_plan(json.dumps(scenario, sort_keys=True), json.dumps(settings, sort_keys=True))
 
 

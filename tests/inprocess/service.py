@@ -7,7 +7,7 @@ import asyncio
 import contextlib
 from collections.abc import AsyncIterator, Awaitable, Callable
 from pathlib import Path
-from typing import Any, TypeVar, overload
+from typing import Any, Literal, TypeVar, overload
 
 import httpx
 from fastapi import FastAPI
@@ -81,19 +81,33 @@ class InProcessService:
         transport = ASGIWebSocketTransport(self.app)
         async with (
             httpx.AsyncClient(transport=transport, base_url=BASE_URL) as client,
-            aconnect_ws(path, client, headers=dict(headers or {})) as ws,
+            aconnect_ws(
+                path,
+                client,
+                headers=dict(headers or {}),
+                session_class=AsyncWebSocketSession,
+            ) as ws,
         ):
             yield ws
 
 
+# A condition's False or None is waited past, so it is no part of the value's type.
 @overload
 async def until(
-    condition: Callable[[], Awaitable[T]], timeout: float, what: str, every: float = 0.1
+    condition: Callable[[], Awaitable[T | Literal[False] | None]],
+    timeout: float,
+    what: str,
+    every: float = 0.1,
 ) -> T: ...
 
 
 @overload
-async def until(condition: Callable[[], T], timeout: float, what: str, every: float = 0.1) -> T: ...
+async def until(
+    condition: Callable[[], T | Literal[False] | None],
+    timeout: float,
+    what: str,
+    every: float = 0.1,
+) -> T: ...
 
 
 async def until(condition: Callable[[], Any], timeout: float, what: str, every: float = 0.1) -> Any:

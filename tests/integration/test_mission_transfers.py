@@ -169,7 +169,9 @@ async def test_a_noisy_link_completes_every_upload(simulator, links) -> None:
         assert len(sim.mission(k)) == len(square_mission(link.autopilot, 4))
 
 
-async def test_verification_catches_a_mission_changed_behind_our_back(simulator, links):
+async def test_verification_catches_a_mission_changed_behind_our_back(
+    simulator, links, monkeypatch: pytest.MonkeyPatch
+):
     """Failure mode 6: what the vehicle holds is compared item by item after the upload."""
     sim = simulator([vehicle(1)])
     link = await links(sim, 1)
@@ -182,7 +184,7 @@ async def test_verification_catches_a_mission_changed_behind_our_back(simulator,
         await MissionClient(other_gcs).upload(theirs)
         return await download()
 
-    client._download = someone_else_uploads_first
+    monkeypatch.setattr(client, "_download", someone_else_uploads_first)
     with pytest.raises(MissionMismatchError, match="seq 3") as caught:
         await client.upload(ours)
     assert caught.value.seq == 3

@@ -164,7 +164,7 @@ async def slow_websocket(
     transport = ASGIWebSocketTransport(held)
     async with (
         httpx.AsyncClient(transport=transport, base_url=BASE_URL) as client,
-        aconnect_ws(path, client) as ws,
+        aconnect_ws(path, client, session_class=AsyncWebSocketSession) as ws,
     ):
         yield ws
 

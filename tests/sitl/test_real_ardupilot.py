@@ -17,7 +17,7 @@ import dataclasses
 import json
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -163,7 +163,7 @@ def keep(where: Path, observer: Observer, log: str, name: str = "fly.log") -> No
     (where / "observer.json").write_text(json.dumps(tracks))
 
 
-def _rounded(values: dict[str, float | None]) -> dict[str, float | None]:
+def _rounded(values: Mapping[str, float | None]) -> dict[str, float | None]:
     return {k: None if v is None else round(v, 2) for k, v in values.items()}
 
 

@@ -62,7 +62,15 @@ class PostgresServer:
         self._log: BinaryIO | None = None
 
     def start(self) -> None:
-        initdb = [self.bindir / "initdb", "-D", self.data, "-U", SUPERUSER, "-A", "trust"]
+        initdb: list[str | Path] = [
+            self.bindir / "initdb",
+            "-D",
+            self.data,
+            "-U",
+            SUPERUSER,
+            "-A",
+            "trust",
+        ]
         subprocess.run(
             [*initdb, "--no-sync", "--no-instructions", "-E", "UTF8", "--locale=C"],
             cwd=self.root,
@@ -72,9 +80,9 @@ class PostgresServer:
         )
         settings = [f"unix_socket_directories={self.root}", "listen_addresses=", *self.settings]
         self._log = (self.root / "server.log").open("wb")
+        postgres: list[str | Path] = [self.bindir / "postgres", "-D", self.data]
         self.process = subprocess.Popen(
-            [self.bindir / "postgres", "-D", self.data]
-            + [arg for setting in settings for arg in ("-c", setting)],
+            postgres + [arg for setting in settings for arg in ("-c", setting)],
             cwd=self.root,
             stdout=subprocess.DEVNULL,
             stderr=self._log,

@@ -67,7 +67,7 @@ LATER_COLUMNS = {"flights": "note", "jobs": "first_safe_s", "vehicles": "signing
 WHEN = "2026-12-01 10:00:00+00:00"
 JOIN_TIMEOUT_S = 60.0
 """Without the upgrade's lock, concurrent starts can wait on each other for ever."""
-ROWS = [
+ROWS: list[tuple[str, dict[str, Any]]] = [
     ("scenarios", {"id": "s1", "name": "case", "body": {"uavs": [1, 2]}, "created_at": WHEN}),
     ("plans", {"id": "p1", "scenario_id": "s1", "feasible": True, "body": {"paths": [[0.5]]}}),
     ("jobs", {"id": "j1", "scenario_id": "s1", "settings": {"seed": 7}, "state": "done"}),
@@ -76,7 +76,7 @@ ROWS = [
     ("events", {"flight_id": "f1", "kind": "FlightEnded", "uav_id": None, "data": {"a": 1}}),
     ("uploads", {"flight_id": "f1", "uav_id": "uav1", "vehicle_id": "v1", "ok": True}),
 ]
-DEFAULTS = {
+DEFAULTS: dict[str, dict[str, Any]] = {
     "plans": {"created_at": WHEN},
     "jobs": {"percent": 100.0, "created_at": WHEN, "updated_at": WHEN},
     "vehicles": {"created_at": WHEN},

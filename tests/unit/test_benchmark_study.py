@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from gcs.cli.main import main
+from planner.experiments.benchmark_config import StudyConfig
 from planner.experiments.benchmark_runs import RunRecord, RunSpec, run_one
-from planner.experiments.benchmark_study import StudyConfig, run_study
+from planner.experiments.benchmark_study import run_study
 from planner.experiments.executor import run_all
 from planner.experiments.nfe_table import build_table
 from planner.optimizers import OptimizeResult

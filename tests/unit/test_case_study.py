@@ -4,9 +4,10 @@ from pathlib import Path
 import pytest
 
 from gcs.cli.main import main
+from planner.experiments.case_config import CaseStudyConfig
 from planner.experiments.case_plots import padded_histories
 from planner.experiments.case_runs import CaseRecord, CaseSpec, run_case
-from planner.experiments.case_study import CaseStudyConfig, run_case_study
+from planner.experiments.case_study import run_case_study
 from planner.experiments.executor import run_all
 
 TINY = CaseStudyConfig(

@@ -15,7 +15,7 @@ from typing import Any, cast
 
 import pytest
 
-from gcs.fleet.events import EventBus, FleetEvent
+from gcs.fleet.events import EventBus, EventKind, FleetEvent
 from gcs.service.flights.event_spill import EventSpill, PendingEvent
 from gcs.service.flights.event_writer import CATCH_UP_BATCH, CLOSE_WAIT_S, EventWriter
 from gcs.service.flights.live_queue import LiveQueue
@@ -24,6 +24,9 @@ from gcs.service.storage import FlightRepository
 from gcs.service.storage.tables import EventRow
 
 pytestmark = [pytest.mark.virtual_clock]
+
+KIND = EventKind.POSITIONS
+"""The kind of the events written below: any stored kind, the writer never reads it."""
 
 
 @dataclass(frozen=True)
@@ -119,7 +122,7 @@ async def test_a_slow_store_gets_every_event_in_order_with_memory_bounded(tmp_pa
     store.gate.clear()
     burst = CATCH_UP_BATCH + 3000  # beyond memory, a batch, and a catch-up batch
     for n in range(burst):
-        events.record("f1", "Tick", {"n": n})  # never waits: the tick calls it
+        events.record("f1", KIND, {"n": n})  # never waits: the tick calls it
     assert len(events._memory) <= 10 and events.spill.unread >= burst - 10 - 200
     metrics = events.metrics
     assert metric(metrics, "mvo_gcs_events_pending") == burst
@@ -139,7 +142,7 @@ async def test_a_slow_store_gets_every_event_in_order_with_memory_bounded(tmp_pa
     assert not events.spill.path.exists()
     assert loop.time() - late < 1.0
 
-    events.record("f1", "Tick", {"n": burst})  # caught up: memory again, no spill
+    events.record("f1", KIND, {"n": burst})  # caught up: memory again, no spill
     await events.flush()
     assert store.rows[-1] == ("f1", burst) and not events.spill.path.exists()
     await events.close()
@@ -151,11 +154,11 @@ async def test_each_stored_event_s_wait_is_measured_and_each_spilled_one_counted
     store = SlowStore()
     events = writer(store, tmp_path, memory_rows=10)
     events.start()
-    events.record("f1", "Tick", {"n": 0})
+    events.record("f1", KIND, {"n": 0})
     await events.flush()  # storage keeps up: stored on the spot (the virtual clock stands)
     store.gate.clear()
     for n in range(1, 26):  # 10 in memory, 15 spilled
-        events.record("f1", "Tick", {"n": n})
+        events.record("f1", KIND, {"n": n})
     await asyncio.sleep(2.0)
     store.gate.set()
     await events.flush()
@@ -184,7 +187,7 @@ async def test_a_failing_store_is_asked_again_until_it_takes_the_events(tmp_path
     events = writer(store, tmp_path)
     events.start()
     for n in range(50):
-        events.record("f1", "Tick", {"n": n})
+        events.record("f1", KIND, {"n": n})
     await events.flush()
     assert store.rows == [("f1", n) for n in range(50)]
     assert metric(events.metrics, "mvo_gcs_event_store_failures_total") == 4
@@ -199,7 +202,7 @@ async def test_the_events_of_a_flight_deleted_meanwhile_are_left_out_and_counted
     events.start()
     store.gate.clear()
     for n in range(6):
-        events.record("f1" if n % 2 else "f2", "Tick", {"n": n})
+        events.record("f1" if n % 2 else "f2", KIND, {"n": n})
     store.flights.discard("f2")  # deleted with its events before they were stored
     store.gate.set()
     await events.flush()
@@ -218,7 +221,7 @@ async def test_events_storage_did_not_take_before_shutdown_are_stored_at_the_nex
     first.start()
     store.gate.clear()
     for n in range(40):
-        first.record("f1", "Tick", {"n": n})
+        first.record("f1", KIND, {"n": n})
     closing = loop.time()
     await first.close()
     assert loop.time() - closing == pytest.approx(CLOSE_WAIT_S)
@@ -227,7 +230,7 @@ async def test_events_storage_did_not_take_before_shutdown_are_stored_at_the_nex
     store = SlowStore()
     second = writer(store, tmp_path, memory_rows=10)
     second.start()
-    second.record("f1", "Tick", {"n": 40})  # new events come after the old ones
+    second.record("f1", KIND, {"n": 40})  # new events come after the old ones
     await second.flush()
     assert store.rows == [("f1", n) for n in range(41)]
     assert not second.spill.path.exists()
@@ -243,11 +246,11 @@ async def test_a_spilled_event_cut_short_by_a_crash_is_left_out_and_the_rest_kep
     path.write_text(text + _line(3)[:20])  # the process died mid-append
     store = cast(SlowStore, events.store)
     events.start()
-    events.record("f1", "Tick", {"n": 4})
+    events.record("f1", KIND, {"n": 4})
     await events.flush()
     assert store.rows == [("f1", 0), ("f1", 1), ("f1", 2), ("f1", 4)]
     await events.close()
 
 
 def _line(n: int) -> str:
-    return PendingEvent(0.0, "f1", "Tick", None, {"n": n}, datetime.now(UTC)).line()
+    return PendingEvent(0.0, "f1", KIND, None, {"n": n}, datetime.now(UTC)).line()

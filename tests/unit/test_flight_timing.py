@@ -25,6 +25,7 @@ from gcs.mission.motion import (
 from gcs.mission.passing_order import PassingOrder, PlannedPath
 from planner.cases import load_case
 from planner.pipeline import PlannerSettings, plan
+from planner.plan import PlannedUAV
 from tests.unit.test_passing_order import planned
 
 LIMITS = CopterLimits(speed_m_s=10.0)
@@ -153,7 +154,7 @@ def test_a_speed_that_cannot_be_kept_is_refused_naming_the_highest_safe_one() ->
     assert "uav1 and uav2" in str(beside.value)
 
 
-def _beside(leader, follower, offset_cells: float):  # type: ignore[no-untyped-def]
+def _beside(leader: PlannedUAV, follower: PlannedUAV, offset_cells: float) -> PlannedUAV:
     rows = [[t, x, y + offset_cells] for t, x, y in leader.trajectory]
     return follower.model_copy(update={"trajectory": rows})
 

@@ -77,7 +77,8 @@ def test_a_cell_is_blocked_exactly_when_it_comes_within_r_plus_margin_of_a_zone(
     s, frame = derived.scenario, derived.frame
     assert derived.clearance_m == 4.5
     barn = shape_in_metres(BARN["geometry"], *BASE)
-    mast = shapely.Point(to_metres(*np.flip(circle["geometry"]["coordinates"]), *BASE)[0])
+    mast_lon, mast_lat = circle["geometry"]["coordinates"]
+    mast = shapely.Point(to_metres(np.array([mast_lat]), np.array([mast_lon]), *BASE)[0])
     area = shape_in_metres(data["features"][0]["geometry"], *BASE)
     blocked = s.blocked()
     for x in range(s.grid.width):

@@ -194,10 +194,10 @@ def private_uses(name: str, source: str, is_package: bool = False) -> Iterator[s
                     bound[alias.asname or alias.name] = target
     for node in ast.walk(tree):
         if isinstance(node, ast.Attribute) and private(node.attr):
-            base = dotted(node.value)
-            if base is None:
+            reader = dotted(node.value)
+            if reader is None:
                 continue
-            head, _, rest = base.partition(".")
+            head, _, rest = reader.partition(".")
             module = bound.get(head)
             if module is None:
                 continue

@@ -6,6 +6,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.actions import is_not_ready
+from gcs.mavlink.endpoint import Endpoint
 from gcs.mavlink.errors import (
     CommandDeniedError,
     CommandFailedError,
@@ -16,7 +17,6 @@ from gcs.mavlink.errors import (
 from gcs.mavlink.errors import command_error as to_command_error
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.modes import UnknownModeError, custom_mode, mode_name, px4_custom_mode
-from gcs.mavlink.transport import Endpoint
 from gcs.mavlink.vehicle_state import LandedState, VehicleState
 
 CODEC = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)

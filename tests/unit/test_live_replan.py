@@ -5,6 +5,7 @@ Every outcome is judged by dense sampling that shares no code with planner.safet
 
 import functools
 import math
+from typing import Any, cast
 
 import numpy as np
 import pytest
@@ -47,7 +48,8 @@ def square_distance(xy: np.ndarray, cell: tuple[int, int]) -> np.ndarray:
 
 def cells_touched(points: ArrayLike, radius: float, t0: float, t1: float) -> set:
     """Cells whose square the disc enters while flying during [t0, t1]."""
-    t = np.append(np.arange(t0, min(t1, points[-1][0]), STEP), min(t1, points[-1][0]))
+    end = min(t1, float(np.asarray(points)[-1, 0]))
+    t = np.append(np.arange(t0, end, STEP), end)
     xy = track(points, t)
     xy = xy[~np.isnan(xy[:, 0])]
     found = set()
@@ -78,7 +80,7 @@ def judge(
     t = np.arange(live.now, end + STEP, STEP)
     where = {u: track(p, t) for u, p in flights.items()}
     forever = [(c, -math.inf, math.inf) for c in scenario.obstacles]
-    forever += [(tuple(c), -math.inf, math.inf) for c in result.non_uav_objects]
+    forever += [((c[0], c[1]), -math.inf, math.inf) for c in result.non_uav_objects]
     timed = [(o.cell, *(o.window or (live.now, math.inf))) for o in objects]
     problems = []
     ids = list(flights)
@@ -327,7 +329,7 @@ def test_same_seed_same_answer() -> None:
     [
         ({"new_object": NewObject((9, 0))}, "outside the 9x9 grid"),
         ({"new_object": NewObject((-1, 2))}, "outside"),
-        ({"new_object": NewObject((2.0, 2))}, "two integers"),
+        ({"new_object": NewObject(cast(Any, (2.0, 2)))}, "two integers"),  # refused at run time
         ({"new_object": NewObject((2, 2), (5.0, 4.0))}, "t0 <= t1"),
         ({"new_object": NewObject((2, 2), (math.nan, 4.0))}, "t0 <= t1"),
         ({"now": -1.0}, "now"),
@@ -398,7 +400,8 @@ def test_whatever_comes_back_is_safe_or_says_it_is_not(
 
 def test_numpy_numbers_are_accepted_and_printed_plainly() -> None:
     scenario, result = planned("case-6")
-    obj = NewObject((np.int64(0), np.int64(8)), (np.float64(0.0), np.float64(9.0)))
+    cell = cast(Any, (np.int64(0), np.int64(8)))  # not ints to a type checker, but accepted
+    obj = NewObject(cell, (np.float64(0.0), np.float64(9.0)))
     live = replan_live(scenario, result, obj, now=1.0)
     assert live.feasible and "(0, 8)" in live.explanation
 
@@ -409,4 +412,6 @@ def test_between_cuts_a_flight_at_any_two_times() -> None:
     assert part is not None
     assert part.points.tolist() == [[1, 1, 0], [2, 2, 0], [5, 2, 0], [5.5, 2, 0.5]]
     assert flight.between(7.0, 9.0) is None and flight.between(-3.0, -1.0) is None
-    assert flight.between(-1.0, 99.0).points.tolist() == flight.points.tolist()
+    whole = flight.between(-1.0, 99.0)
+    assert whole is not None
+    assert whole.points.tolist() == flight.points.tolist()

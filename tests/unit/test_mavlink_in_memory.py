@@ -244,7 +244,12 @@ async def gap_in_heartbeats(link: VehicleLink, peer: Peer, *, streaming: bool) -
     wait for whatever the gap set off to end (never for the link's own watchdog).
     """
     gap: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-    link.on_event(lambda event: event == LinkEvent.GAP and gap.set_result(None))
+
+    def on_gap(event: LinkEvent) -> None:
+        if event == LinkEvent.GAP:
+            gap.set_result(None)
+
+    link.on_event(on_gap)
     link.heartbeat_period_s = 0.01
     if streaming:
         peer.send(peer.codec.global_position_int_encode(1000, 0, 0, 0, 0, 0, 0, 0, 65535))

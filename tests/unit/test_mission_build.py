@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import Literal
 
 import numpy as np
 import pytest
@@ -119,7 +120,10 @@ frames = st.builds(
     "land",
 )
 def test_flying_the_mission_reproduces_the_trajectory(
-    case: tuple[np.ndarray, float], frame: GridFrame, autopilot: Autopilot, finish: str
+    case: tuple[np.ndarray, float],
+    frame: GridFrame,
+    autopilot: Autopilot,
+    finish: Literal["land", "rtl"],
 ) -> None:
     """PX4 flies the plan's own timing; ArduCopter the same route with whole-second holds."""
     points, cruise = case
@@ -212,7 +216,7 @@ def test_px4_has_no_home_item_and_rtl_ends_after_the_last_waypoint() -> None:
 
 
 def test_schedule_gives_each_nav_item_its_plan_time() -> None:
-    points = [[0, 0, 0], [1.5, 0, 0], [4.5, 3, 0], [5.5, 3, 0], [7.5, 3, 2]]
+    points: list[list[float]] = [[0, 0, 0], [1.5, 0, 0], [4.5, 3, 0], [5.5, 3, 0], [7.5, 3, 2]]
     mission = build_mission(points, 1.0, CANBERRA, Autopilot.PX4)
     schedule = mission_schedule(mission)
     # seq 2: the hover at the start; 3: (3, 0) hold 1 s; 4: land at (3, 2)
@@ -224,7 +228,7 @@ def test_schedule_gives_each_nav_item_its_plan_time() -> None:
 def test_an_ardupilot_schedule_holds_whole_seconds_and_arrives_on_time() -> None:
     """The 1.5 s hover at the start becomes 1 s (2 s would make the next leg too fast);
     that leg is then flown slower, so (3, 0) is still reached at 4.5 s."""
-    points = [[0, 0, 0], [1.5, 0, 0], [4.5, 3, 0], [5.5, 3, 0], [7.5, 3, 2]]
+    points: list[list[float]] = [[0, 0, 0], [1.5, 0, 0], [4.5, 3, 0], [5.5, 3, 0], [7.5, 3, 2]]
     mission = build_mission(points, 1.0, CANBERRA, Autopilot.ARDUPILOT)
     visits = fly_ideally(mission)
     assert [v.leave - v.arrive for v in visits] == pytest.approx([1.0, 1.0, 0.0], abs=1e-6)

@@ -32,7 +32,7 @@ FRAMES = [Frame.GLOBAL, Frame.MISSION, Frame.GLOBAL_RELATIVE_ALT, 5, Frame.GLOBA
 
 
 def case_missions(autopilot: Autopilot) -> list[Mission]:
-    missions = []
+    missions: list[Mission] = []
     for case in CASES:
         scenario = load_case(case)
         missions += build_missions(plan(scenario, FAST), scenario, autopilot).values()

@@ -11,10 +11,10 @@ import pytest
 
 from planner.cases import CASES, load_case
 from planner.references import ReferenceResult, judge, shortest_lengths
-from planner.references.prioritized import SearchLimits, plan_prioritized
+from planner.references.prioritized import plan_prioritized
 from planner.safety import check_plan, closest_approach
 from planner.scenario import Scenario, load_scenario
-from planner.space_time import Flight, min_gap
+from planner.space_time import Flight, SearchLimits, min_gap
 from planner.trajectory import Trajectory
 
 

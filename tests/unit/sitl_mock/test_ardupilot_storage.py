@@ -17,8 +17,8 @@ LAT, LON = -353632620, 1491652370
 def item(
     command: int, frame: int, *params: float, z: float = 0.0, x: int = LAT, y: int = LON
 ) -> MissionItem:
-    p = (*params, *[0.0] * (4 - len(params)))
-    return MissionItem(0, frame, command, *p, x=x, y=y, z=z)
+    p1, p2, p3, p4 = (*params, *[0.0] * (4 - len(params)))
+    return MissionItem(0, frame, command, p1, p2, p3, p4, x=x, y=y, z=z)
 
 
 def fields(i: MissionItem) -> tuple:
