@@ -94,12 +94,13 @@ def segment_square_distance(
         return np.hypot(off[..., 0], off[..., 1])
 
     best = np.minimum(to_square(a), to_square(b))
-    length2 = np.maximum(d[..., 0] ** 2 + d[..., 1] ** 2, 1e-300)
-    for corner in _CORNERS:
-        rel = centre + corner - a
-        u = np.clip((rel[..., 0] * d[..., 0] + rel[..., 1] * d[..., 1]) / length2, 0.0, 1.0)
-        best = np.minimum(best, np.hypot(rel[..., 0] - u * d[..., 0], rel[..., 1] - u * d[..., 1]))
-    return np.where(crosses, 0.0, best)
+    length2 = np.maximum(d[..., 0] ** 2 + d[..., 1] ** 2, 1e-300)[..., None]
+    # The four corners along a last axis at once: the same arithmetic per corner.
+    rel = centre[..., None, :] + _CORNERS - a[..., None, :]
+    dx, dy = d[..., None, 0], d[..., None, 1]
+    u = np.clip((rel[..., 0] * dx + rel[..., 1] * dy) / length2, 0.0, 1.0)
+    corners = np.hypot(rel[..., 0] - u * dx, rel[..., 1] - u * dy).min(axis=-1)
+    return np.where(crosses, 0.0, np.minimum(best, corners))
 
 
 @dataclass(frozen=True)
