@@ -60,6 +60,8 @@ def forbidden_intervals(
         need = radius + other.radius + spacing / 2 + STEP / 2
         period = STEP / max(other.speed, 1e-9)
         traj = other.trajectory
+        if _apart(traj.xy, lower - need, upper + need):
+            continue  # never near: no need to sample it
         times = np.arange(0.0, traj.end_time + period, period)
         times[-1] = min(times[-1], traj.end_time)
         where = traj.at(times)
@@ -78,6 +80,12 @@ def forbidden_intervals(
     if not slots:
         return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
     return _merge(np.concatenate(slots), np.concatenate(los), np.concatenate(his))
+
+
+def _apart(xy: Array, lower: Array, upper: Array) -> bool:
+    """Whether a flight through the points `xy` stays outside the box [lower, upper]
+    (its positions lie in the box of its points; a margin for interpolation's rounding)."""
+    return bool(np.any(xy.min(axis=0) > upper + 1e-9) or np.any(xy.max(axis=0) < lower - 1e-9))
 
 
 def _merge(slot: NDArray[np.intp], lo: Array, hi: Array) -> tuple[NDArray[np.intp], Array, Array]:
