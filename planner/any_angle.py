@@ -92,15 +92,13 @@ def tighten(
         for i in sorted(todo):
             a, v, b = pts[i - 1], pts[i], pts[i + 1]
             chord = b - a
-            u = float(np.clip((v - a) @ chord / max(float(chord @ chord), 1e-300), 0.0, 1.0))
+            u = min(max(float((v - a) @ chord / max(float(chord @ chord), 1e-300)), 0.0), 1.0)
             candidates = v + fractions[:, None] * (a + u * chord - v)
-            cells = _cells_in(np.vstack([a, v, b]), clearance, blocked)
+            cells = _cells_in(pts[i - 1 : i + 2], clearance, blocked)
             k = len(candidates)
-            clear = segments_clearance(
-                np.vstack([np.broadcast_to(a, (k, 2)), candidates]),
-                np.vstack([candidates, np.broadcast_to(b, (k, 2))]),
-                cells,
-            )
+            starts, ends = np.empty((2 * k, 2)), np.empty((2 * k, 2))
+            starts[:k], starts[k:], ends[:k], ends[k:] = a, candidates, candidates, b
+            clear = segments_clearance(starts, ends, cells)
             ok = np.flatnonzero((clear[:k] >= clearance) & (clear[k:] >= clearance))
             if len(ok) and np.hypot(*(candidates[ok[0]] - v)) > 1e-6:
                 pts[i] = candidates[ok[0]]
