@@ -50,7 +50,7 @@ sys.path.insert(0, str(ROOT))
 from gcs.mission.geodesy import GridFrame  # noqa: E402
 from planner.experiments.machine import describe_machine  # noqa: E402
 from planner.experiments.scenario_generator import crossing_scenario, random_scenario  # noqa: E402
-from planner.scenario import Scenario  # noqa: E402
+from planner.model.scenario import Scenario  # noqa: E402
 from tests.sitl.ardupilot_sitl import stop_process  # noqa: E402
 from tests.sitl.flown import (  # noqa: E402
     ARRIVAL_M,

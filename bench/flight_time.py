@@ -37,8 +37,8 @@ from gcs.mavlink.mission_item import Autopilot  # noqa: E402
 from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, FlightPlan, flight_plan  # noqa: E402
 from gcs.mission.flight_timing import fly  # noqa: E402
 from planner.experiments.machine import describe_machine  # noqa: E402
+from planner.model.scenario import Scenario  # noqa: E402
 from planner.pipeline import plan  # noqa: E402
-from planner.scenario import Scenario  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "bench"))
 from flight_speed import PLANNING, scenarios  # noqa: E402

@@ -41,7 +41,7 @@ import httpx
 from bench.service_bench import homes, line_scenario, loadavg
 from planner.cases import load_case
 from planner.experiments.machine import describe_machine
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from sitl_mock import Faults, Simulator, VehicleConfig
 from tests.e2e.flying import Flight, fleet_at_starts, wait_for
 from tests.e2e.test_mission_readers import line as line_of_uavs

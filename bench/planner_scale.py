@@ -51,9 +51,9 @@ from planner.experiments.scenario_generator import (
     random_scenario,
     short_trips_scenario,
 )
+from planner.model.scenario import Scenario
 from planner.pipeline import PlannerSettings, plan
 from planner.references.pymapf_solvers import plan_lacam, plan_pymapf_prioritized
-from planner.scenario import Scenario
 
 LACAM = "LaCAM (pymapf), 4-connected"
 

@@ -43,8 +43,8 @@ from gcs.mission.geodesy import GridFrame
 from gcs.service.api.schemas import PlanRequest
 from planner.cases import load_case
 from planner.experiments.machine import cpu_model
+from planner.model.scenario import Scenario
 from planner.pipeline import PlannerSettings, plan
-from planner.scenario import Scenario
 from sitl_mock import Simulator, VehicleConfig
 from tests.service_process import TOKEN, ServiceProcess
 

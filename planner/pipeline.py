@@ -1,9 +1,9 @@
 """`plan`: a scenario to a plan, by one of the two flows of Algorithm 1.
 
-The anytime `qos` flow (`planner.anytime`: lone paths, a safe start, then the optimizer
+The anytime `qos` flow (`planner.flows.anytime`: lone paths, a safe start, then the optimizer
 where it pays) unless the objective is `paper` or `safe_start` is off; then Algorithm 1
-as the paper runs it (`planner.algorithm_1`: explore, exploit, wormhole), followed with
-`qos` by the improvement phase. How the two flows differ: `planner.flows`.
+as the paper runs it (`planner.flows.algorithm_1`: explore, exploit, wormhole), followed with
+`qos` by the improvement phase. How the two flows differ: `planner.flows.policies`.
 
 The planner is anytime: `time_budget_s` (default 5 s) bounds the wall time, every
 optimizer run also stops when it has converged (`patience`), and every moment the
@@ -17,17 +17,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.algorithm_1 import algorithm_1, improve_in_turn
-from planner.anytime import plan_anytime
-from planner.budget import Budget
-from planner.conflict_table import ConflictTable
-from planner.engine import Engine
-from planner.flows import paper_flow
-from planner.grid_search import shortest_lengths
-from planner.optimizers import get_algorithm
-from planner.plan import Plan
-from planner.plan_report import finish
-from planner.planning import (
+from planner.flows.algorithm_1 import algorithm_1, improve_in_turn
+from planner.flows.anytime import plan_anytime
+from planner.flows.budget import Budget
+from planner.flows.conflict_table import ConflictTable
+from planner.flows.engine import Engine
+from planner.flows.plan_report import finish
+from planner.flows.planning import (
     ATTEMPTS,
     IMPROVEMENT,
     MAX_HOVER,
@@ -39,8 +35,12 @@ from planner.planning import (
     PlanProgress,
     ProgressCallback,
 )
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory, merge_collinear
+from planner.flows.policies import paper_flow
+from planner.geometry.grid_search import shortest_lengths
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory, merge_collinear
+from planner.optimizers import get_algorithm
 
 __all__ = [
     "ATTEMPTS",

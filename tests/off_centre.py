@@ -9,9 +9,9 @@ import functools
 from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M
 from gcs.mission.geodesy import GridFrame
 from gcs.mission.geographic import derive, load_geographic
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
 from planner.pipeline import PlannerSettings, plan
-from planner.plan import Plan
-from planner.scenario import Scenario
 
 CMAC = (-35.363262, 149.165237, 584.0)
 CELL_M = 10.0

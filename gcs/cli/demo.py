@@ -20,7 +20,7 @@ from gcs.service.settings import Settings
 from gcs.service.storage import Database, VehicleRepository
 from gcs.service.storage.tables import VehicleRow
 from planner.cases import load_case
-from planner.scenario import Scenario, load_scenario
+from planner.model.scenario import Scenario, load_scenario
 from sitl_mock import Simulator, VehicleConfig
 
 

@@ -36,8 +36,8 @@ from gcs.mission.flight_plan import (
     flight_plan,
 )
 from gcs.mission.motion import DEFAULT_SPEED_M_S
-from planner.plan import Plan
-from planner.scenario import Scenario
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

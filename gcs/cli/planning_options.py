@@ -16,9 +16,9 @@ from gcs.mission.area_imports import from_kml
 from gcs.mission.geodesy import GridFrame
 from gcs.mission.geographic import GeographicError, derive_file, looks_geographic
 from planner.cases import CASES, load_case
+from planner.model.scenario import Scenario, load_scenario, max_planned_uavs
 from planner.optimizers import ALGORITHMS
 from planner.pipeline import PlannerSettings
-from planner.scenario import Scenario, load_scenario, max_planned_uavs
 
 
 class ScenarioFileError(ValueError):

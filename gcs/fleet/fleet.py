@@ -36,7 +36,7 @@ from gcs.mavlink.parameters import set_in_units
 from gcs.mission.build import takeoff_index
 from gcs.mission.fence import FencePlan
 from gcs.mission.flight_plan import FlightPlan, continued
-from planner.trajectory import Trajectory
+from planner.model.trajectory import Trajectory
 
 __all__ = ["Fallback", "Fleet", "FleetSettings", "FlightReport", "VehicleOutcome"]
 

@@ -33,9 +33,9 @@ from numpy.typing import ArrayLike
 
 from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
 from gcs.mission.geodesy import Floats, GridFrame, local_metres, to_e7
-from planner.plan import Plan
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory, merge_collinear
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory, merge_collinear
 
 DEFAULT_ALTITUDE_M = 20.0
 """Flight altitude above home: clear of trees and roofs, low enough for 10 m cells to matter."""

@@ -32,10 +32,10 @@ from gcs.mission.motion import (
     stray_m,
 )
 from gcs.mission.passing_order import PassingOrder, PlannedPath
-from planner.plan import Plan
-from planner.safety import uav_conflicts
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory
+from planner.check.safety import uav_conflicts
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory
 
 TURN_RADIUS_M = 0.5
 """A vehicle passing a waypoint cuts the corner by up to its acceptance radius (ArduCopter's

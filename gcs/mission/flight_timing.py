@@ -26,7 +26,7 @@ from gcs.mission.motion import (
     turn_angles,
 )
 from gcs.mission.passing_order import PassingOrder, PlannedPath
-from planner.trajectory import Trajectory
+from planner.model.trajectory import Trajectory
 
 STEP_S = 0.05
 SAMPLE_S = 0.25

@@ -15,7 +15,7 @@ import numpy as np
 import pymap3d
 from numpy.typing import ArrayLike, NDArray
 
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 
 Floats = NDArray[np.float64]
 MAX_EXTENT_M = 100_000.0

@@ -37,8 +37,8 @@ from shapely.geometry.base import BaseGeometry
 from shapely.validation import explain_validity
 
 from gcs.mission.geodesy import MAX_EXTENT_M, GridFrame
-from planner.plan import Plan
-from planner.scenario import MAX_GRID_SIDE, MAX_UAVS, Grid, Origin, Scenario, UAVSpec
+from planner.model.plan import Plan
+from planner.model.scenario import MAX_GRID_SIDE, MAX_UAVS, Grid, Origin, Scenario, UAVSpec
 
 GEOJSON_MEDIA_TYPE = "application/geo+json"
 DEFAULT_MARGIN_M = 1.0

@@ -1,6 +1,6 @@
 """A non-UAV object reported during a flight: replan only the UAVs it touches.
 
-The planner decides who changes and how (`planner.live_replan`, the wormhole step done
+The planner decides who changes and how (`planner.live.replan`, the wormhole step done
 live); this module gives it the fleet's clock and positions, turns the new trajectories
 into missions, re-uploads only those, and splices them into the flight's current plan
 so that the next report starts from what the vehicles are really flying.
@@ -17,10 +17,10 @@ from gcs.fleet.fleet import Fleet, VehicleOutcome
 from gcs.mavlink.mission_item import Mission
 from gcs.mission.build import Finish, build_mission
 from gcs.mission.geodesy import GridFrame
-from planner.live_replan import LiveReplan, NewObject, replan_live
-from planner.plan import Plan, PlannedUAV
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory
+from planner.live.replan import LiveReplan, NewObject, replan_live
+from planner.model.plan import Plan, PlannedUAV
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory
 
 
 @dataclass(frozen=True)

@@ -41,8 +41,8 @@ from gcs.mission.geographic import load_geographic
 from gcs.service.metrics import ServiceMetrics
 from gcs.service.storage import NotFound, PlanRepository, ScenarioRepository
 from gcs.service.storage.tables import PlanRow
-from planner.plan import Plan
-from planner.scenario import Scenario
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
 
 MAX_ENTRIES = 32
 """Plan and options combinations kept."""

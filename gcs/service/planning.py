@@ -19,8 +19,8 @@ from gcs.service.planning_pool import JobProgress, PlanCancelled, PlanRunner
 from gcs.service.states import JobState, StateConflict
 from gcs.service.storage import JobRepository, PlanRepository, ScenarioRepository
 from gcs.service.storage.tables import JobRow, PlanRow
+from planner.model.scenario import Scenario
 from planner.pipeline import PlannerSettings
-from planner.scenario import Scenario
 
 log = logging.getLogger("mvo_gcs.planning")
 J = JobState

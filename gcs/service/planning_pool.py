@@ -29,8 +29,8 @@ from dataclasses import asdict, dataclass
 from multiprocessing.managers import SyncManager
 from typing import Any, Protocol
 
+from planner.model.scenario import load_scenario
 from planner.pipeline import PlannerSettings, PlanProgress, plan
-from planner.scenario import load_scenario
 
 PROGRESS_INTERVAL_S = 0.2
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from importlib.resources import files
 from typing import Any
 
-from planner.scenario import Scenario, load_scenario
+from planner.model.scenario import Scenario, load_scenario
 
 CASES = tuple(f"case-{k}" for k in range(1, 7))
 

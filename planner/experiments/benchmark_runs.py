@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.benchmarks import BENCHMARKS
 from planner.optimizers import OptimizeResult, optimize
+from planner.optimizers.benchmarks import BENCHMARKS
 
 
 @dataclass(frozen=True)

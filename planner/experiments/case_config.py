@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 from planner.cases import CASES, PAPER_POPULATIONS
 from planner.experiments.case_runs import CaseSpec
-from planner.objectives import ObjectiveName
 from planner.optimizers import ALGORITHMS
+from planner.search.objectives import ObjectiveName
 
 
 @dataclass(frozen=True)

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.cases import load_case
-from planner.objectives import ObjectiveName
+from planner.model.plan import Plan
 from planner.pipeline import PlannerSettings, plan
-from planner.plan import Plan
+from planner.search.objectives import ObjectiveName
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from planner.benchmarks import BENCHMARKS
 from planner.experiments.benchmark_runs import RunRecord
+from planner.optimizers.benchmarks import BENCHMARKS
 
 FLOOR = 1e-16  # log axes cannot show an exact optimum
 

@@ -34,12 +34,12 @@ from planner.experiments.fleet_tables import (
     write_csv,
 )
 from planner.experiments.scenario_generator import crossing_scenario, random_scenario
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory
 from planner.pipeline import PlannerSettings, plan
 from planner.references import ReferenceResult, judge
 from planner.references.cbs import MapfDependencyError, require_pymapf
 from planner.references.pymapf_solvers import plan_lacam, plan_pymapf_prioritized
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory
 
 
 @dataclass(frozen=True)

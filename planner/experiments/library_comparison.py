@@ -22,7 +22,6 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from planner.benchmarks import BENCHMARKS, BenchmarkFunction
 from planner.experiments.library_config import (
     EVOLOPY_FUNCTIONS,
     INSTALL_HINT,
@@ -37,6 +36,7 @@ from planner.experiments.library_config import (
 )
 from planner.experiments.library_report import code_version, report
 from planner.optimizers import ALGORITHMS, Algorithm, optimize
+from planner.optimizers.benchmarks import BENCHMARKS, BenchmarkFunction
 
 __all__ = ["BenchDependencyError", "ComparisonConfig", "Run", "run_comparison"]
 

@@ -163,7 +163,7 @@ def _package_version(name: str) -> str:
         return "not installed"
 
 
-_MEASURED = ("planner/optimizers", "planner/benchmarks.py")
+_MEASURED = ("planner/optimizers", "planner/optimizers/benchmarks.py")
 
 
 def code_version() -> str:

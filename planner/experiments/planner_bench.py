@@ -28,14 +28,14 @@ from planner.experiments.executor import run_all
 from planner.experiments.fleet_bench import FleetConfig, fleet_section
 from planner.experiments.machine import describe_machine
 from planner.experiments.scenario_generator import crossing_scenario
-from planner.objectives import ObjectiveName
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory
 from planner.pipeline import PlannerSettings, plan
-from planner.plan import Plan
 from planner.references import ReferenceResult, judge
 from planner.references.cbs import MapfDependencyError, plan_cbs
 from planner.references.prioritized import plan_prioritized
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory
+from planner.search.objectives import ObjectiveName
 
 FLEET = FleetConfig()
 
@@ -145,7 +145,7 @@ def _header(config: PlannerBenchConfig) -> str:
 {config.first_seed} --algorithm {config.algorithm} --population {config.population} \
 --iterations {config.iterations}{_workers(config)}`
 - Machine: {describe_machine()}
-- Every plan is judged by the exact continuous-time check (`planner.safety`).
+- Every plan is judged by the exact continuous-time check (`planner.check.safety`).
 - Ours run with the default time budget of 5 s unless a section says otherwise; a
   plan ends when improving its first safe plan stops paying (converged), at the latest
   at the budget.

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
-from planner.scenario import Scenario, load_scenario
+from planner.model.scenario import Scenario, load_scenario
 
 MAX_TRIES = 200
 

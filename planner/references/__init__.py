@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from planner.grid_search import shortest_lengths
-from planner.safety import check_plan
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory
+from planner.check.safety import check_plan
+from planner.geometry.grid_search import shortest_lengths
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory
 
 __all__ = ["ReferenceResult", "judge", "shortest_lengths"]
 
@@ -45,7 +45,7 @@ class ReferenceResult:
 def judge(scenario: Scenario, result: ReferenceResult) -> dict[str, Any]:
     """The reference's plan measured the way our own plans are.
 
-    `safe` is the verdict of `planner.safety.check_plan`; `feasible` also asks that
+    `safe` is the verdict of `planner.check.safety.check_plan`; `feasible` also asks that
     no UAV flies faster than its speed (MAPF charges a diagonal one step, so a plan
     timed by the solver's clock may break it) and that every UAV ends on its goal.
     """

@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory
 from planner.references import ReferenceResult
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory
 
 NAME = "CBS (pymapf)"
 INSTALL_HINT = "pip install -e '.[mapf]'"

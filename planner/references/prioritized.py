@@ -5,7 +5,7 @@ UAVs are planned one after another; each searches (cell, time) space on the
 planned before it as moving obstacles. Time is continuous: a straight move takes
 1/speed, a diagonal √2/speed and a wait `wait`/speed, so the timing is physically
 right. Every candidate move is tested exactly (closed form on each linear piece,
-the same test as `planner.safety.closest_approach`) against the flights already
+the same test as `planner.check.safety.closest_approach`) against the flights already
 planned, so a returned plan is safe by OUR continuous-time check, not merely free
 of MAPF vertex and edge conflicts. States whose times fall in the same
 `resolution` bucket of a cell are merged, which bounds the search.
@@ -24,10 +24,10 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
+from planner.model.scenario import Scenario, UAVSpec
+from planner.model.trajectory import Trajectory
 from planner.references import ReferenceResult
-from planner.scenario import Scenario, UAVSpec
-from planner.space_time import DEFAULT_LIMITS, Flight, Search, SearchLimits, to_trajectory
-from planner.trajectory import Trajectory
+from planner.search.space_time import DEFAULT_LIMITS, Flight, Search, SearchLimits, to_trajectory
 
 NAME = "prioritized A*"
 

@@ -21,9 +21,9 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
+from planner.model.scenario import Scenario
 from planner.references import ReferenceResult
 from planner.references.cbs import from_mapf, require_pymapf, to_mapf
-from planner.scenario import Scenario
 
 
 class _OutOfTime(Exception):

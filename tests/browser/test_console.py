@@ -27,7 +27,7 @@ from gcs.service.settings import Settings
 from gcs.service.storage.database import Database
 from gcs.service.storage.tables import EventRow
 from planner.cases import load_case
-from planner.trajectory import Trajectory
+from planner.model.trajectory import Trajectory
 from sitl_mock import Simulator
 from tests.browser.chromium import NEEDS_CHROMIUM, Browser
 from tests.e2e.flying import Flight, fleet_at_starts, ground_speed, register, wait_for

@@ -16,7 +16,7 @@ import httpx
 
 from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from sitl_mock import Faults, Simulator, VehicleConfig
 
 SPEEDUP = 20.0

@@ -15,7 +15,7 @@ import concurrent.futures
 
 import httpx
 
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from tests.service_process import ServiceProcess
 
 READERS = 24

@@ -12,7 +12,7 @@ from planner.experiments.scenario_generator import (
     gap_swap_scenario,
     random_scenario,
 )
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from sitl_mock import Faults
 
 FAMILIES = ("crossing", "random", "gap-swap")

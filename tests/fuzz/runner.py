@@ -30,7 +30,7 @@ import httpx
 from gcs.mission.geodesy import GridFrame, distance_m
 from gcs.service import planning_pool
 from gcs.service.states import FLIGHT_TRANSITIONS, FlightState
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from sitl_mock import Simulator
 from sitl_mock.modes import FlightMode
 from sitl_mock.virtual_time import VirtualTimeLoop

@@ -14,8 +14,8 @@ from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.flight_plan import flight_plan
 from gcs.mission.geodesy import GridFrame, distance_m
 from gcs.mission.motion import DEFAULT_SPEED_M_S
-from planner.plan import Plan
-from planner.scenario import Scenario
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
 from sitl_mock import Simulator
 from tests.inprocess.vehicles import SimulatedVehicles
 

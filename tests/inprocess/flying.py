@@ -13,7 +13,7 @@ from typing import Any
 import httpx
 
 from planner.cases import load_case
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from sitl_mock import Simulator
 from tests.inprocess.service import until
 

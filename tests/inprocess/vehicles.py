@@ -8,7 +8,7 @@ from gcs.mavlink.endpoint import Endpoint
 from gcs.mavlink.errors import LinkError
 from gcs.mavlink.transport import ByteTransport, MemoryTransport
 from gcs.mission.geodesy import GridFrame
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from sitl_mock import Faults, Simulator, VehicleConfig
 
 FAST_BOOT: dict[str, Any] = {"estimate_delay_s": 6.0, "position_delay_s": 3.0}

@@ -4,7 +4,7 @@ its own). Fleet flights on the virtual clock are in tests/inprocess/fleet.py."""
 from __future__ import annotations
 
 from gcs.mission.geodesy import GridFrame
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from sitl_mock import VehicleConfig
 
 

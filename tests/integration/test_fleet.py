@@ -24,9 +24,9 @@ from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, flight_plan
 from planner.cases import load_case
 from planner.experiments.scenario_generator import crossing_scenario
+from planner.model.plan import Plan
+from planner.model.scenario import Origin, Scenario
 from planner.pipeline import PlannerSettings, plan
-from planner.plan import Plan
-from planner.scenario import Origin, Scenario
 from sitl_mock import Faults, Simulator
 from sitl_mock.readiness import EKF_S
 from tests.inprocess.fleet import GOAL_RADIUS_M, connect_all, fly_plan

@@ -18,8 +18,8 @@ from gcs.fleet.launch import _segments_gap
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.flight_plan import flight_plan
 from gcs.mission.geodesy import GridFrame, distance_m
-from planner.plan import Plan
-from planner.scenario import Scenario
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
 from sitl_mock import Simulator
 from tests.inprocess.fleet import ALTITUDE_M, GOAL_RADIUS_M, connect_all, goal_misses
 from tests.inprocess.vehicles import SimulatedVehicles, configs_at_starts

@@ -15,7 +15,7 @@ import httpx
 import pytest
 
 from planner.cases import load_case
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from tests.inprocess.flying import online, plan_scenario, register
 from tests.inprocess.service import InProcessService, until
 

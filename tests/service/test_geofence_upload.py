@@ -16,7 +16,7 @@ from gcs.mavlink.mission_protocol import MISSION_TYPE_FENCE, MISSION_TYPE_RALLY
 from gcs.mission.fence import fence_items, fence_of, rally_items
 from gcs.mission.geographic import load_geographic
 from planner.cases import load_case
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 from sitl_mock import Faults, Simulator
 from tests.geographic import field, point, polygon, rectangle
 from tests.inprocess.flying import bind, register, upload_once_online

@@ -10,7 +10,7 @@ import pytest
 
 from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
-from planner.trajectory import Trajectory
+from planner.model.trajectory import Trajectory
 from tests.inprocess.flying import bind, register
 from tests.inprocess.service import InProcessService, until
 

@@ -25,8 +25,8 @@ from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.files import plan_text, waypoints_text
 from gcs.mission.flight_plan import UnsafeSpeed
 from planner.cases import load_case
-from planner.plan import Plan
-from planner.scenario import Scenario
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
 from tests.inprocess.service import InProcessService, until
 
 CASE_VI = load_case("case-6").model_dump(mode="json")

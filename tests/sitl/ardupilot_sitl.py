@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 from gcs.mission.geodesy import GridFrame
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 
 ENV = "ARDUPILOT_SITL"
 BASE_PORT = 5760

@@ -25,7 +25,7 @@ from gcs.mission.geodesy import GridFrame
 from gcs.mission.motion import CopterLimits
 from planner.cases import load_case
 from planner.experiments.scenario_generator import crossing_scenario, gap_swap_scenario
-from planner.scenario import Origin, Scenario
+from planner.model.scenario import Origin, Scenario
 from tests.sitl.observer import Mark, Observer, metres_apart
 
 CANBERRA = Origin(lat=-35.363262, lon=149.165237, alt_m=584.0)

@@ -28,8 +28,8 @@ import pytest
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.flight_plan import UnsafeSpeed, flight_plan
 from planner.cases import load_case
-from planner.plan import Plan
-from planner.scenario import Scenario
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
 from tests.e2e.flying import online, register, wait_for
 from tests.service_process import ServiceProcess
 from tests.sitl.ardupilot_sitl import Instance, homes_at_starts, instances

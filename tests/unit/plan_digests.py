@@ -29,10 +29,10 @@ from planner.experiments.scenario_generator import (
     gap_swap_scenario,
     random_scenario,
 )
-from planner.live_replan import NewObject, replan_live
+from planner.live.replan import NewObject, replan_live
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
 from planner.pipeline import PlannerSettings, PlanProgress, plan
-from planner.plan import Plan
-from planner.scenario import Scenario
 
 RECORD = Path(__file__).parent / "data" / "plan_digests.json"
 CLOCK_FIELDS = ("seconds", "first_safe_s")  # wall time: the only fields a clock decides

@@ -7,20 +7,20 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner import budget as budget_clock
-from planner.budget import Budget
 from planner.cases import load_case
-from planner.conflict_table import ConflictTable
+from planner.check.safety import check_plan, uav_conflicts
 from planner.experiments.scenario_generator import (
     crossing_scenario,
     gap_swap_scenario,
     random_scenario,
     short_trips_scenario,
 )
+from planner.flows import budget as budget_clock
+from planner.flows.budget import Budget
+from planner.flows.conflict_table import ConflictTable
+from planner.flows.run_stop import RunStop
+from planner.model.trajectory import Trajectory
 from planner.pipeline import PlannerSettings, PlanProgress, plan
-from planner.run_stop import RunStop
-from planner.safety import check_plan, uav_conflicts
-from planner.trajectory import Trajectory
 
 
 def _fleet(name: str):
@@ -204,11 +204,11 @@ def test_pymapf_references_are_judged_by_our_check_and_never_too_fast() -> None:
 
 
 def test_a_hover_probe_lets_a_uav_wait_for_another_to_pass() -> None:
-    from planner.black_hole import Search, wait_probe
-    from planner.clearance import ClearanceField
-    from planner.objectives import QosObjective
-    from planner.path_cost import Traffic
-    from planner.path_encoding import DetourEncoding
+    from planner.geometry.clearance import ClearanceField
+    from planner.geometry.path_encoding import DetourEncoding
+    from planner.search.black_hole import Search, wait_probe
+    from planner.search.objectives import QosObjective
+    from planner.search.path_cost import Traffic
 
     crossing = Trajectory.from_waypoints([(4, 0), (4, 8)], 1.0)  # passes (4, 4) at t = 4
     encoding = DetourEncoding.around(np.array([(0.0, 4.0), (8.0, 4.0)]), max_wait=8.0)

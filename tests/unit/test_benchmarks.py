@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from planner.benchmarks import (
+from planner.optimizers.benchmarks import (
     BENCHMARKS,
     ackley,
     griewank,

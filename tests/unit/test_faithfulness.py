@@ -27,9 +27,9 @@ from hypothesis import strategies as st
 from scipy.stats import mannwhitneyu
 
 import planner
-from planner.benchmarks import rastrigin, sphere
 from planner.optimizers import DA, Problem
 from planner.optimizers.alo import ALO, _shrink_ratio
+from planner.optimizers.benchmarks import rastrigin, sphere
 from planner.optimizers.gwo import _update_leaders
 from planner.optimizers.random_walk import random_walks
 from planner.optimizers.roulette import roulette_wheel

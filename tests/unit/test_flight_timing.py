@@ -24,8 +24,8 @@ from gcs.mission.motion import (
 )
 from gcs.mission.passing_order import PassingOrder, PlannedPath
 from planner.cases import load_case
+from planner.model.plan import PlannedUAV
 from planner.pipeline import PlannerSettings, plan
-from planner.plan import PlannedUAV
 from tests.unit.test_passing_order import planned
 
 LIMITS = CopterLimits(speed_m_s=10.0)

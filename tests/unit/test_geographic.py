@@ -13,8 +13,8 @@ from pydantic import ValidationError
 
 from gcs.cli.main import main
 from gcs.mission.geographic import GeographicError, derive_file, wgs84_trajectories
+from planner.model.scenario import MAX_GRID_SIDE
 from planner.pipeline import PlannerSettings, plan
-from planner.scenario import MAX_GRID_SIDE
 from tests.geographic import (
     BASE,
     EXAMPLE,

@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 
-from planner.grid_search import GridGraph, path_length
+from planner.geometry.grid_search import GridGraph, path_length
 
 
 def test_straight_and_diagonal_costs() -> None:

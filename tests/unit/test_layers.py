@@ -2,9 +2,10 @@
 
 The rules are import-linter contracts in `pyproject.toml` (`[tool.importlinter]`): gcs
 above planner and sitl_mock, which import neither of the others; the planner free of
-MAVLink, HTTP, storage and geography; the five layers of gcs; only the command line
-starting simulated vehicles; the planner's adapters (`references`, `experiments`)
-imported by nothing else in the planner; no import cycles, type-only ones included.
+MAVLink, HTTP, storage and geography; the five layers of gcs and the planner's seven;
+only the command line starting simulated vehicles; the planner's adapters (`references`,
+`experiments`) imported by nothing else in the planner; no import cycles, type-only ones
+included.
 `lint-imports` checks every import in the source (inside functions and under
 TYPE_CHECKING too); these tests run it, on the source and on a tiny tree that breaks
 each contract in turn. Beside them, a check that import-linter has no contract for:
@@ -70,9 +71,17 @@ TINY = {
     "gcs/fleet/__init__.py": "",
     "gcs/mission/__init__.py": "import gcs.mavlink\nimport planner\n",
     "gcs/mavlink/__init__.py": "",
-    "planner/__init__.py": "from planner import core\n",
-    "planner/core.py": "import numpy\n",
-    "planner/references/__init__.py": "import planner.core\n",
+    "planner/__init__.py": "",
+    "planner/pipeline.py": "import planner.live\nimport planner.flows\n",
+    "planner/live/__init__.py": "import planner.flows\n",
+    "planner/flows/__init__.py": "import planner.search\nimport planner.optimizers\n",
+    "planner/search/__init__.py": "import planner.check\n",
+    "planner/check/__init__.py": "import planner.geometry\n",
+    "planner/optimizers/__init__.py": "import numpy\n",
+    "planner/geometry/__init__.py": "import planner.model\n",
+    "planner/cases/__init__.py": "import planner.model\n",
+    "planner/model/__init__.py": "",
+    "planner/references/__init__.py": "import planner.pipeline\n",
     "planner/experiments/__init__.py": "import planner.references\n",
     "sitl_mock/__init__.py": "import pymavlink\n",
 }
@@ -90,6 +99,11 @@ BREAKS = {
         "gcs/service/bad.py",
         "import sitl_mock\n",
         {"simulated-vehicles"},
+    ),
+    "the planner's model imports an optimizer": (
+        "planner/model/bad.py",
+        "import planner.optimizers\n",
+        {"planner-layers"},
     ),
     "the planner core imports a reference": (
         "planner/bad.py",
@@ -222,21 +236,25 @@ def test_no_module_uses_another_modules_private_names() -> None:
 
 def test_the_private_check_catches_imports_and_attributes() -> None:
     source = (
-        "from planner.planning import _Best, PlannerSettings\n"
-        "from planner import planning\n"
+        "from planner.flows.planning import _Best, PlannerSettings\n"
+        "from planner.flows import planning\n"
         "from . import _Map\n"
-        "import planner.space_time as st\n"
+        "import planner.search.space_time as st\n"
         "import gcs.mavlink.link\n"
         "def f(self):\n"
         "    planning._finish(); st._OutOfTime; gcs.mavlink.link._private; self._own\n"
     )
-    assert set(private_uses("planner.anytime", source)) == {
-        "planner.planning._Best",
-        "planner._Map",
-        "planner.planning._finish",
-        "planner.space_time._OutOfTime",
+    assert set(private_uses("planner.flows.anytime", source)) == {
+        "planner.flows.planning._Best",
+        "planner.flows._Map",
+        "planner.flows.planning._finish",
+        "planner.search.space_time._OutOfTime",
         "gcs.mavlink.link._private",
     }
-    own = "from planner.planning import _Best\nimport planner.planning\nplanner.planning._Map\n"
-    assert not set(private_uses("planner.planning", own))
+    own = (
+        "from planner.flows.planning import _Best\n"
+        "import planner.flows.planning\n"
+        "planner.flows.planning._Map\n"
+    )
+    assert not set(private_uses("planner.flows.planning", own))
     assert not set(private_uses("planner.x", "from planner import __version__\nimport os._x\n"))

@@ -1,6 +1,6 @@
 """The live wormhole step: an object reported in flight changes only the UAVs it touches.
 
-Every outcome is judged by dense sampling that shares no code with planner.safety.
+Every outcome is judged by dense sampling that shares no code with planner.check.safety.
 """
 
 import functools
@@ -15,11 +15,11 @@ from numpy.typing import ArrayLike
 
 from planner.cases import load_case
 from planner.experiments.scenario_generator import crossing_scenario
-from planner.live_replan import LiveReplan, NewObject, replan_live
+from planner.live.replan import LiveReplan, NewObject, replan_live
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario, load_scenario
+from planner.model.trajectory import Trajectory
 from planner.pipeline import PlannerSettings, plan
-from planner.plan import Plan
-from planner.scenario import Scenario, load_scenario
-from planner.trajectory import Trajectory
 
 STEP = 0.005  # seconds between the judge's samples
 SETTINGS = PlannerSettings(population=20, iterations=150)

@@ -33,9 +33,9 @@ from gcs.mission.build import (
 )
 from gcs.mission.geodesy import GridFrame
 from planner.cases import CASES, load_case
+from planner.check.safety import check_plan
+from planner.model.trajectory import Trajectory
 from planner.pipeline import PlannerSettings, plan
-from planner.safety import check_plan
-from planner.trajectory import Trajectory
 
 TOL = 0.01  # cells
 DEGE7_ROUNDING_M = 0.0079  # R: horizontal error of a position rounded to degE7

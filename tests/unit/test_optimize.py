@@ -13,7 +13,7 @@ from planner import (
     OptimizerInputError,
     UnknownAlgorithmError,
 )
-from planner.benchmarks import sphere
+from planner.optimizers.benchmarks import sphere
 
 NAMES = sorted(ALGORITHMS)
 

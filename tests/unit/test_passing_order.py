@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from gcs.mission.passing_order import PassingOrder, PlannedPath
 from planner.experiments.scenario_generator import crossing_scenario, random_scenario
+from planner.model.scenario import Scenario
 from planner.pipeline import PlannerSettings, plan
-from planner.scenario import Scenario
 
 CELL_M = 10.0
 

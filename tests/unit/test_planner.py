@@ -8,17 +8,17 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planner.cases import CASES, PAPER_TABLE_III, load_case
-from planner.objectives import ObjectiveName
+from planner.model.plan import Plan
+from planner.model.scenario import load_scenario
+from planner.model.trajectory import Trajectory
 from planner.pipeline import PlannerSettings, PlanProgress, plan
-from planner.plan import Plan
-from planner.scenario import load_scenario
-from planner.trajectory import Trajectory
+from planner.search.objectives import ObjectiveName
 
 FAST: dict[str, Any] = {"population": 20, "iterations": 150}
 
 
 def independent_check(result: Plan, radii: dict[str, float], blocked: set) -> list[str]:
-    """A dense-sampling judge that shares no code with planner.safety."""
+    """A dense-sampling judge that shares no code with planner.check.safety."""
     tracks = {u.id: Trajectory(np.array(u.trajectory)) for u in result.uavs}
     end = max(t.end_time for t in tracks.values())
     t = np.linspace(0.0, end, int(end / 0.005) + 2)

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from planner.cases import CASES, load_case
+from planner.check.safety import check_plan, closest_approach
+from planner.model.scenario import Scenario, load_scenario
+from planner.model.trajectory import Trajectory
 from planner.references import ReferenceResult, judge, shortest_lengths
 from planner.references.prioritized import plan_prioritized
-from planner.safety import check_plan, closest_approach
-from planner.scenario import Scenario, load_scenario
-from planner.space_time import Flight, SearchLimits, min_gap
-from planner.trajectory import Trajectory
+from planner.search.space_time import Flight, SearchLimits, min_gap
 
 
 def scenario(width: int, height: int, uavs: list[tuple], obstacles=()) -> Scenario:

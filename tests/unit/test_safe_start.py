@@ -7,21 +7,21 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner import space_time
-from planner.any_angle import pull_string, segments_clearance, tighten
-from planner.clearance import ExactClearance
-from planner.experiments.scenario_generator import random_scenario
-from planner.grid_search import GridGraph, path_length
-from planner.pipeline import PlannerSettings, plan
-from planner.safety import (
+from planner.check.safety import (
     _segment_square_distance,
     cell_conflicts,
     closest_approach,
     uav_conflicts,
 )
-from planner.scenario import UAVSpec
-from planner.sipp import Mover, schedule
-from planner.trajectory import Trajectory
+from planner.experiments.scenario_generator import random_scenario
+from planner.geometry.clearance import ExactClearance
+from planner.geometry.grid_search import GridGraph, path_length
+from planner.model.scenario import UAVSpec
+from planner.model.trajectory import Trajectory
+from planner.pipeline import PlannerSettings, plan
+from planner.search import space_time
+from planner.search.any_angle import pull_string, segments_clearance, tighten
+from planner.search.sipp import Mover, schedule
 from tests.unit.test_planner import independent_check
 
 

@@ -3,9 +3,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.path_cost import Traffic, separation_terms, timeline
-from planner.safety import cell_conflicts, check_plan, closest_approach
-from planner.trajectory import Trajectory
+from planner.check.safety import cell_conflicts, check_plan, closest_approach
+from planner.model.trajectory import Trajectory
+from planner.search.path_cost import Traffic, separation_terms, timeline
 
 
 def fly(points, speed=1.0, waits=None) -> Trajectory:

@@ -3,7 +3,7 @@ import json
 import pytest
 from pydantic import ValidationError
 
-from planner.scenario import MAX_GRID_SIDE, Scenario, load_scenario
+from planner.model.scenario import MAX_GRID_SIDE, Scenario, load_scenario
 
 
 def scenario(**changes) -> dict:
@@ -118,7 +118,12 @@ def _fleet_of(count: int) -> dict:
 def test_a_scenario_takes_a_mavlink_network_of_uavs_and_more_only_for_planning(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from planner.scenario import MAX_UAVS, PLANNED_UAVS_CEILING, PLANNED_UAVS_ENV, max_planned_uavs
+    from planner.model.scenario import (
+        MAX_UAVS,
+        PLANNED_UAVS_CEILING,
+        PLANNED_UAVS_ENV,
+        max_planned_uavs,
+    )
 
     assert MAX_UAVS == 250
     assert len(load_scenario(_fleet_of(250)).uavs) == 250

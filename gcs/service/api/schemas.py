@@ -11,9 +11,9 @@ from gcs.mission.build import DEFAULT_ALTITUDE_M
 from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, MAX_SPEED_M_S, TURN_RADIUS_M
 from gcs.mission.motion import DEFAULT_SPEED_M_S
 from gcs.service.states import JobState
+from planner.model.plan import Metrics, Plan
+from planner.model.scenario import Scenario
 from planner.optimizers import ALGORITHMS
-from planner.plan import Metrics, Plan
-from planner.scenario import Scenario
 
 MAX_PAGE = 200
 """The most rows one list answer carries (each summarised): a bound on its size."""

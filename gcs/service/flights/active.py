@@ -10,9 +10,9 @@ from typing import Any
 from gcs.fleet.events import FleetEvent
 from gcs.fleet.fleet import Fleet
 from gcs.mavlink.mission_item import Mission
-from planner.live_replan import NewObject
-from planner.plan import Plan
-from planner.scenario import Scenario
+from planner.live.replan import NewObject
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
 
 LISTENER_QUEUE = 1000  # live messages kept for one slow client (the default)
 

@@ -40,10 +40,10 @@ from gcs.service.states import FlightState, StateConflict
 from gcs.service.storage import PlanRepository, ScenarioRepository, VehicleRepository
 from gcs.service.storage.tables import FlightRow, UploadRow
 from gcs.service.vehicle_registry import VehicleRegistry
-from planner.live_replan import NewObject
-from planner.plan import Plan
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory
+from planner.live.replan import NewObject
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory
 
 log = logging.getLogger("mvo_gcs.flights")
 F = FlightState

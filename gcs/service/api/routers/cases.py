@@ -10,7 +10,7 @@ from pydantic import BaseModel
 from gcs.service.api.schemas import Problem
 from gcs.service.storage import NotFound
 from planner.cases import CASES, load_case
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 
 router = APIRouter(prefix="/cases", tags=["cases"])
 NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": Problem}}

@@ -42,7 +42,7 @@ from gcs.service.flights.service import FlightService
 from gcs.service.states import FlightState, StateConflict
 from gcs.service.storage import NotFound
 from gcs.service.storage.tables import FlightRow
-from planner.live_replan import NewObject
+from planner.live.replan import NewObject
 
 router = APIRouter(prefix="/flights", tags=["flights"])
 ANSWERS: dict[int | str, dict[str, Any]] = {

@@ -26,9 +26,9 @@ from gcs.service.api.schemas import MAX_PAGE, JobOut, PlanOut, PlanRequest, Plan
 from gcs.service.states import OPEN, JobState, StateConflict
 from gcs.service.storage import ScenarioRepository
 from gcs.service.storage.tables import JobRow, PlanRow
+from planner.model.plan import Plan
+from planner.model.scenario import Grid, Origin
 from planner.pipeline import PlannerSettings
-from planner.plan import Plan
-from planner.scenario import Grid, Origin
 
 router = APIRouter(tags=["plans"])
 NOT_FOUND: dict[int | str, dict[str, Any]] = {404: {"model": Problem}}

@@ -41,7 +41,7 @@ from gcs.service.api.schemas import (
 from gcs.service.states import OPEN, StateConflict
 from gcs.service.storage.tables import ScenarioRow
 from gcs.service.vehicle_starts import place_vehicle_starts
-from planner.scenario import Scenario
+from planner.model.scenario import Scenario
 
 
 class GeographicRoute(APIRoute):

@@ -17,8 +17,8 @@ the same rule on what is left of every flight:
 
 Objects are honoured in time: a new path may cross the cell before the object appears
 or after it has gone, and a UAV whose goal is under an object with a window hovers
-nearby until it has gone. Inside this module (and `planner.live_objects`, what the
-objects block, and `planner.live_search`, one UAV's search) time runs from `now`,
+nearby until it has gone. Inside this module (and `planner.live.objects`, what the
+objects block, and `planner.live.search`, one UAV's search) time runs from `now`,
 because the search and the exact check both take every flight to start at t = 0;
 results are in plan time.
 """
@@ -34,20 +34,20 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.live_objects import (
+from planner.check.safety import Conflict
+from planner.flows.planning import PlannerSettings
+from planner.live.objects import (
     Blocking,
     NewObject,
     fleet_conflicts,
     timed_conflicts,
     window_from,
 )
-from planner.live_search import replan_one
+from planner.live.search import replan_one
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario, UAVSpec
+from planner.model.trajectory import Trajectory
 from planner.optimizers import get_algorithm
-from planner.plan import Plan
-from planner.planning import PlannerSettings
-from planner.safety import Conflict
-from planner.scenario import Scenario, UAVSpec
-from planner.trajectory import Trajectory
 
 __all__ = ["LIVE_SETTINGS", "LiveReplan", "NewObject", "replan_live"]
 

@@ -5,12 +5,12 @@ Algorithm 1 with its exploration made constructive (see docs/planner.md):
 1. **Lone paths.** Every UAV's shortest 8-connected path (obstacles and the non-UAV
    objects blocked; a UAV whose obstacle-only path an object touches is the one the
    wormhole step, eq. 9, replans), with its string pulled and tightened round the
-   corners it bends at (`planner.any_angle`): the any-angle polyline a UAV alone would
+   corners it bends at (`planner.search.any_angle`): the any-angle polyline a UAV alone would
    fly, every shortcut exactly clear of blocked cells.
 2. **Safe start (white hole).** While two flights conflict, the UAV in trouble with the
    highest priority ImP (eq. 7) is made safe against all the others, held fixed: first by
-   hovering where it must along its own path (safe intervals, `planner.sipp`), else by a
-   space-time A* that may step aside (`planner.space_time`). Each success removes every
+   hovering where it must along its own path (safe intervals, `planner.search.sipp`), else by a
+   space-time A* that may step aside (`planner.search.space_time`). Each success removes every
    conflict of that UAV and creates none, so the loop ends after at most one success per
    UAV; a UAV that cannot be made safe waits until another one's path changes. What is
    left is handed to the optimizer (step 2 of the paper's Algorithm 1) while time lasts.
@@ -25,7 +25,7 @@ Algorithm 1 with its exploration made constructive (see docs/planner.md):
 
 The conflict table keeps the exact check's verdict for every pair as paths change, so the
 first safe plan is known the moment it exists; the final plan is checked once more by
-`planner.safety.check_plan`. Steps 1 and 2 never read the clock (unless the hard limit
+`planner.check.safety.check_plan`. Steps 1 and 2 never read the clock (unless the hard limit
 `safe_start_limit_s` is set), so the first safe plan is the same however loaded the
 machine is; the time budget decides only how long step 3 (and the optimizer's repair of
 what step 2 left) runs. Without a budget the same seed gives the same plan.
@@ -39,17 +39,14 @@ from collections import Counter
 import numpy as np
 from numpy.typing import NDArray
 
-from planner import lone_paths, space_time
-from planner.algorithm_1 import exploit, stop_reason
-from planner.any_angle import pull_string
-from planner.budget import Budget, StopReason
-from planner.conflict_table import ConflictTable
-from planner.engine import Engine
-from planner.flows import AnytimeFlow
-from planner.grid_search import cell_map
-from planner.plan import Plan
-from planner.plan_report import finish, refused, table_report
-from planner.planning import (
+from planner.check.safety import cell_conflicts
+from planner.flows import lone_paths
+from planner.flows.algorithm_1 import exploit, stop_reason
+from planner.flows.budget import Budget, StopReason
+from planner.flows.conflict_table import ConflictTable
+from planner.flows.engine import Engine
+from planner.flows.plan_report import finish, refused, table_report
+from planner.flows.planning import (
     FINISH_S,
     MIN_GAIN,
     Map,
@@ -60,12 +57,16 @@ from planner.planning import (
     adjoining_start_distance,
     flight_cost,
 )
-from planner.safety import cell_conflicts
-from planner.scenario import Scenario
-from planner.sipp import Mover, schedule
-from planner.space_time import SearchLimits
-from planner.trajectory import Trajectory, merge_collinear
-from planner.white_hole import Exploration, importance
+from planner.flows.policies import AnytimeFlow
+from planner.flows.white_hole import Exploration, importance
+from planner.geometry.grid_search import cell_map
+from planner.model.plan import Plan
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory, merge_collinear
+from planner.search import space_time
+from planner.search.any_angle import pull_string
+from planner.search.sipp import Mover, schedule
+from planner.search.space_time import SearchLimits
 
 ROUND_GAIN = 2e-3  # relative: a round of improvement that gains less has converged
 MIN_EXCESS = 0.1  # of its lone path's cost: a UAV with less excess than this is left alone,
@@ -148,7 +149,7 @@ def exploration(
     state: PlanningState, objects: NDArray[np.bool_], first: dict[str, lone_paths.Route]
 ) -> Exploration:
     """The white hole's metrics of the lone paths, from the conflict table (the same exact
-    numbers as `planner.white_hole.explore`, without a second pass over all pairs); OTP
+    numbers as `planner.flows.white_hole.explore`, without a second pass over all pairs); OTP
     (eq. 4) counts the objects on each UAV's obstacle-only path, before the wormhole."""
     table = state.table
     collision_paths = {u: table.collision_paths(u) for u in state.paths}

@@ -1,7 +1,7 @@
 """Each UAV's lone path, what the anytime flow anchors its searches on.
 
 A UAV's shortest 8-connected grid path with the objects blocked (`routes`), its string
-pulled and tightened round the corners it bends at (`shaped`, `planner.any_angle`):
+pulled and tightened round the corners it bends at (`shaped`, `planner.search.any_angle`):
 the any-angle polyline the UAV alone would fly. The windows of it a search moves
 (`hover_window`, `split`) are found here too.
 """
@@ -11,13 +11,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.any_angle import pull_string, tighten
-from planner.budget import Budget
-from planner.clearance import distance_to_polyline
-from planner.grid_search import GridGraph
-from planner.planning import as_waypoints
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory, merge_collinear
+from planner.flows.budget import Budget
+from planner.flows.planning import as_waypoints
+from planner.geometry.clearance import distance_to_polyline
+from planner.geometry.grid_search import GridGraph
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory, merge_collinear
+from planner.search.any_angle import pull_string, tighten
 
 Array = NDArray[np.float64]
 Route = list[tuple[int, int]]

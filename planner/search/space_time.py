@@ -1,6 +1,6 @@
 """Space-time A* around the other UAVs: the fallback when a UAV cannot wait its way through.
 
-Hovering along its own path (`planner.sipp`) solves most conflicts, but not a head-on
+Hovering along its own path (`planner.search.sipp`) solves most conflicts, but not a head-on
 meeting in a corridor: one of the two has to step aside. Then the UAV searches (cell,
 time) space, 8-connected without corner cutting and with a wait action, against the
 other UAVs' trajectories held fixed (`Search`, the same space-time A* that the reference
@@ -24,9 +24,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.scenario import UAVSpec
-from planner.sipp import Mover
-from planner.trajectory import Trajectory
+from planner.model.scenario import UAVSpec
+from planner.model.trajectory import Trajectory
+from planner.search.sipp import Mover
 
 MOVES = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1), (0, 0))
 _EPS = 1e-9

@@ -18,7 +18,7 @@ The margin covers what sampling cannot see: half a sample apart along the path, 
 half a sampling period of the other UAV's motion. A UAV is near one sample point for a
 period (`step / v`) around the moment it passes it, so each forbidden interval is
 widened by half of that. Every schedule is nevertheless checked exactly by the caller
-(`planner.safety`) before it is used.
+(`planner.check.safety`) before it is used.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from planner.trajectory import Trajectory
+from planner.model.trajectory import Trajectory
 
 Array = NDArray[np.float64]
 STEP = 0.1  # cells between sample points, and cells another UAV moves between samples

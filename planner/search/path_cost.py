@@ -4,7 +4,7 @@ A candidate is a polyline of waypoints with a hover time at each. Every term is
 computed for the whole population in numpy: separation from the other UAVs at
 sampled encounters with a margin that covers the motion between samples, clearance
 from blocked cells from a fine distance raster, also with a margin. Both err on the
-safe side, and every plan is still judged by the exact check in `planner.safety`.
+safe side, and every plan is still judged by the exact check in `planner.check.safety`.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.clearance import ClearanceField, ExactClearance, distance_to_polyline
-from planner.trajectory import Trajectory
+from planner.geometry.clearance import ClearanceField, ExactClearance, distance_to_polyline
+from planner.model.trajectory import Trajectory
 
 Array = NDArray[np.float64]
 SPACING = 0.1  # cells between clearance samples along a path

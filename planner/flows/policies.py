@@ -1,6 +1,6 @@
 """The two flows of Algorithm 1, side by side: two policies over one planning engine.
 
-`planner.engine.Engine` replans one UAV at a time over one `PlanningState`; where the
+`planner.flows.engine.Engine` replans one UAV at a time over one `PlanningState`; where the
 two flows differ, it asks its flow. Everything else (the white hole's table, the black
 hole's search, the wormhole, the exact check) is the same code for both.
 
@@ -25,8 +25,8 @@ How they differ, question by question (`PaperFlow`, Algorithm 1 as the paper run
 - a wait probe before a search (`probes`): with `qos` and an improvement phase; the
   anytime flow: with an improvement phase.
 
-The steps each flow runs are in `planner.algorithm_1` (explore, exploit, wormhole,
-improvement in turn) and `planner.anytime` (lone paths, safe start, improvement where
+The steps each flow runs are in `planner.flows.algorithm_1` (explore, exploit, wormhole,
+improvement in turn) and `planner.flows.anytime` (lone paths, safe start, improvement where
 it pays); `planner.pipeline.plan` picks the flow.
 """
 
@@ -39,10 +39,8 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.clearance import ClearanceField, ExactClearance
-from planner.lone_paths import hover_window, split
-from planner.path_encoding import DetourEncoding, TurnEncoding, grid_steps
-from planner.planning import (
+from planner.flows.lone_paths import hover_window, split
+from planner.flows.planning import (
     MAX_HOVER,
     MIN_GAIN,
     Map,
@@ -51,7 +49,9 @@ from planner.planning import (
     PlanningState,
     flight_cost,
 )
-from planner.trajectory import Trajectory, merge_collinear
+from planner.geometry.clearance import ClearanceField, ExactClearance
+from planner.geometry.path_encoding import DetourEncoding, TurnEncoding, grid_steps
+from planner.model.trajectory import Trajectory, merge_collinear
 
 Array = NDArray[np.float64]
 IMPROVE_ITERATIONS = 40  # at most, per improvement run of the anytime flow
@@ -233,7 +233,7 @@ class AnytimeFlow:
 
     def fleet_passes(self, state: PlanningState) -> bool:
         """The conflict table holds the exact check's verdict on every pair and every cell
-        (`planner.conflict_table`), so a clear table is a fleet that passes it."""
+        (`planner.flows.conflict_table`), so a clear table is a fleet that passes it."""
         return state.table.clear()
 
 

@@ -11,12 +11,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.black_hole import Search
-from planner.conflict_table import NEAR
-from planner.flows import Corridor, Flow, Region
-from planner.objectives import PaperObjective, QosObjective
-from planner.path_cost import Traffic
-from planner.planning import Map, PlanningState, as_waypoints
+from planner.flows.conflict_table import NEAR
+from planner.flows.planning import Map, PlanningState, as_waypoints
+from planner.flows.policies import Corridor, Flow, Region
+from planner.search.black_hole import Search
+from planner.search.objectives import PaperObjective, QosObjective
+from planner.search.path_cost import Traffic
 
 Array = NDArray[np.float64]
 

@@ -10,12 +10,12 @@ from __future__ import annotations
 import time
 from collections import Counter
 
-from planner.budget import StopReason
-from planner.engine import Engine
-from planner.grid_search import cell_map
-from planner.planning import ATTEMPTS, FINISH_S, Map, Phase, adjoining_start_distance
-from planner.safety import cell_conflicts
-from planner.white_hole import Exploration, explore
+from planner.check.safety import cell_conflicts
+from planner.flows.budget import StopReason
+from planner.flows.engine import Engine
+from planner.flows.planning import ATTEMPTS, FINISH_S, Map, Phase, adjoining_start_distance
+from planner.flows.white_hole import Exploration, explore
+from planner.geometry.grid_search import cell_map
 
 
 def algorithm_1(engine: Engine, obstacles: Map) -> tuple[Exploration, Map]:

@@ -19,7 +19,7 @@ from typing import Literal, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from planner.path_cost import PathTerms
+from planner.search.path_cost import PathTerms
 
 ObjectiveName = Literal["qos", "paper"]
 HOVER_PRICE = 0.5  # cells of length one second of hovering costs, per cell/s of speed

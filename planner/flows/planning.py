@@ -2,8 +2,8 @@
 
 `PlanningState` is data: the fleet's paths, the conflict table (the white hole's
 numbers, exact), the budget, the counters a plan reports and the cheapest fleet that
-passed the exact check. `planner.engine.Engine` changes it (one UAV's replan at a time),
-as a flow of `planner.flows` says; `Phase` says why a path changed.
+passed the exact check. `planner.flows.engine.Engine` changes it (one UAV's replan at a time),
+as a flow of `planner.flows.policies` says; `Phase` says why a path changed.
 """
 
 from __future__ import annotations
@@ -17,14 +17,14 @@ from enum import StrEnum
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.budget import Budget
-from planner.clearance import PIXELS_PER_CELL, ClearanceField
-from planner.conflict_table import ConflictTable
-from planner.grid_search import GridGraph
-from planner.objectives import HOVER_PRICE, ObjectiveName, paper_fitness
-from planner.safety import SafetyReport, check_plan
-from planner.scenario import Scenario, UAVSpec
-from planner.trajectory import Trajectory
+from planner.check.safety import SafetyReport, check_plan
+from planner.flows.budget import Budget
+from planner.flows.conflict_table import ConflictTable
+from planner.geometry.clearance import PIXELS_PER_CELL, ClearanceField
+from planner.geometry.grid_search import GridGraph
+from planner.model.scenario import Scenario, UAVSpec
+from planner.model.trajectory import Trajectory
+from planner.search.objectives import HOVER_PRICE, ObjectiveName, paper_fitness
 
 Array = NDArray[np.float64]
 ATTEMPTS = 3  # searches a UAV in trouble gets before the others take over
@@ -60,7 +60,7 @@ class PlannerSettings:
     safe_start_limit_s: float | None = None
     patience: int | None = 100  # a run stops after this many iterations without gain
     improve_rounds: int = 3  # qos only: rounds of the improvement phase, 0 for none
-    # qos only: start from safe flights (safe intervals, space-time A*; planner.anytime)
+    # qos only: start from safe flights (safe intervals, space-time A*; planner.flows.anytime)
     # rather than from the shortest paths the optimizer must then repair.
     safe_start: bool = True
 

@@ -5,22 +5,22 @@ others held fixed, its result kept only if it is better and the exact check agre
 `Engine.adopt` takes a flight made elsewhere (the anytime flow's safe start). Every
 change goes through the conflict table, and every fleet that passes the exact check is
 remembered (`record_if_safe`). Where the flows differ, `flow` decides
-(`planner.flows`).
+(`planner.flows.policies`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from planner import search_costs as costs
-from planner.black_hole import search_path, wait_probe
-from planner.flows import Flow
+from planner.check.safety import cell_conflicts
+from planner.flows import search_costs as costs
+from planner.flows.planning import Best, Map, Phase, PlanningState, PlanProgress
+from planner.flows.policies import Flow
+from planner.flows.run_stop import RunStop
+from planner.geometry.path_encoding import DetourEncoding
+from planner.model.trajectory import Trajectory
 from planner.optimizers import Progress
-from planner.path_encoding import DetourEncoding
-from planner.planning import Best, Map, Phase, PlanningState, PlanProgress
-from planner.run_stop import RunStop
-from planner.safety import cell_conflicts
-from planner.trajectory import Trajectory
+from planner.search.black_hole import search_path, wait_probe
 
 
 @dataclass

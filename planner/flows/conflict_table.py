@@ -2,7 +2,7 @@
 
 Algorithm 1 replans one UAV at a time, so after a replan only that UAV's pairs can
 have changed. The table keeps every pair's closest approach (from the exact
-`planner.safety.closest_approach`) and every UAV's blocked-cell hits, and recomputes
+`planner.check.safety.closest_approach`) and every UAV's blocked-cell hits, and recomputes
 one row when a path changes: n - 1 pairs instead of n (n - 1) / 2, and of those only
 the pairs whose bounding boxes come within `NEAR` cells of the sum of the radii (two
 flights whose boxes are further apart can never be closer) and whose positions sampled
@@ -10,7 +10,7 @@ every `SAMPLE_S` seconds, less what they can fly in half of that, come as near (
 bound on their distance, computed for all of them in one numpy pass). That is what
 makes fleets of hundreds affordable. Its numbers are the exact check's own, so the
 priorities it gives (eq. 7) equal the white hole's; the final verdict on a plan is
-still `planner.safety.check_plan`'s.
+still `planner.check.safety.check_plan`'s.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.safety import Conflict, cell_conflicts, closest_approach
-from planner.trajectory import Trajectory
-from planner.white_hole import importance
+from planner.check.safety import Conflict, cell_conflicts, closest_approach
+from planner.flows.white_hole import importance
+from planner.model.trajectory import Trajectory
 
 NEAR = 0.5  # cells beyond the radii within which a pair's exact closest approach is kept
 SAMPLE_S = 1.0  # seconds between the sampled positions that bound a pair from below

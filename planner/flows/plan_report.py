@@ -11,15 +11,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.budget import Budget, StopReason
-from planner.objectives import paper_fitness
+from planner.check.safety import SafetyReport, cell_conflicts, check_plan, uav_conflicts
+from planner.flows.budget import Budget, StopReason
+from planner.flows.planning import Map, PlannerSettings, PlanningState
+from planner.flows.white_hole import Exploration
+from planner.model.plan import Metrics, Plan, PlannedUAV
+from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory, merge_collinear
 from planner.optimizers import get_algorithm
-from planner.plan import Metrics, Plan, PlannedUAV
-from planner.planning import Map, PlannerSettings, PlanningState
-from planner.safety import SafetyReport, cell_conflicts, check_plan, uav_conflicts
-from planner.scenario import Scenario
-from planner.trajectory import Trajectory, merge_collinear
-from planner.white_hole import Exploration
+from planner.search.objectives import paper_fitness
 
 Route = list[tuple[int, int]]
 

@@ -16,9 +16,9 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.clearance import SQUARE_REACH
-from planner.grid_search import cell_map
-from planner.trajectory import Trajectory
+from planner.geometry.clearance import SQUARE_REACH
+from planner.geometry.grid_search import cell_map
+from planner.model.trajectory import Trajectory
 
 Cell = tuple[int, int]
 ConflictKind = Literal["uav", "obstacle", "non_uav_object"]

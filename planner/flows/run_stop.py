@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from planner.budget import Budget, StopReason
+from planner.flows.budget import Budget, StopReason
 
 
 @dataclass

@@ -18,9 +18,9 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
-from planner.grid_search import cell_map
-from planner.safety import Conflict, cell_conflicts, uav_conflicts
-from planner.trajectory import Trajectory
+from planner.check.safety import Conflict, cell_conflicts, uav_conflicts
+from planner.geometry.grid_search import cell_map
+from planner.model.trajectory import Trajectory
 
 Cell = tuple[int, int]
 EARLIEST = 1e-3  # seconds; a collision at take-off still gets a finite priority

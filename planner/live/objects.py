@@ -15,12 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.clearance import ClearanceField
-from planner.grid_search import cell_map
-from planner.planning import MAX_HOVER
-from planner.safety import Conflict, cell_conflicts, check_plan
-from planner.scenario import UAVSpec
-from planner.trajectory import Trajectory
+from planner.check.safety import Conflict, cell_conflicts, check_plan
+from planner.flows.planning import MAX_HOVER
+from planner.geometry.clearance import ClearanceField
+from planner.geometry.grid_search import cell_map
+from planner.model.scenario import UAVSpec
+from planner.model.trajectory import Trajectory
 
 Cell = tuple[int, int]
 # The search keeps UAVs apart as discs: a disc round each quarter of a cell covers the
@@ -117,7 +117,8 @@ def timed_conflicts(
 def fleet_conflicts(
     fleet: Mapping[str, Trajectory], specs: Mapping[str, UAVSpec], blocking: Blocking
 ) -> list[Conflict]:
-    """planner.safety.check_plan on the remaining fleet, plus timed objects in their window."""
+    """`planner.check.safety.check_plan` on the remaining fleet, plus timed objects in
+    their window."""
     radii = {u: specs[u].radius for u in fleet}
     objects = [(int(x), int(y)) for x, y in np.argwhere(blocking.objects)]
     found = check_plan(fleet, radii, blocking.obstacles, objects).conflicts

@@ -9,7 +9,7 @@ uses it.
 `ExactClearance`: the blocked cells near one search's corridor, and the exact distance
 of each leg of each candidate to them (the safety check's own geometry), for the
 anytime planner: no raster to build on a 500 x 500 map, and no margin that would keep
-a path off the obstacles it may hug. Every plan is still judged by `planner.safety`.
+a path off the obstacles it may hug. Every plan is still judged by `planner.check.safety`.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Routes from the UAV's exact position to its goal round the objects (and, second, round
 the cells the others will still fly through), searched with the detour encoding against
 everyone else's remaining flight held fixed and the timed objects as discs; kept only if
-the exact check clears it. `planner.live_replan` calls it for each touched UAV in turn.
+the exact check clears it. `planner.live.replan` calls it for each touched UAV in turn.
 """
 
 from __future__ import annotations
@@ -14,16 +14,16 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.black_hole import Search, search_path
-from planner.grid_search import GridGraph, cell_map, descend
-from planner.live_objects import Blocking
-from planner.objectives import QosObjective
-from planner.path_cost import Traffic
-from planner.path_encoding import DetourEncoding
-from planner.planning import ATTEMPTS, PlannerSettings
-from planner.safety import Conflict, cell_conflicts, uav_conflicts
-from planner.scenario import Scenario, UAVSpec
-from planner.trajectory import Trajectory, merge_collinear
+from planner.check.safety import Conflict, cell_conflicts, uav_conflicts
+from planner.flows.planning import ATTEMPTS, PlannerSettings
+from planner.geometry.grid_search import GridGraph, cell_map, descend
+from planner.geometry.path_encoding import DetourEncoding
+from planner.live.objects import Blocking
+from planner.model.scenario import Scenario, UAVSpec
+from planner.model.trajectory import Trajectory, merge_collinear
+from planner.search.black_hole import Search, search_path
+from planner.search.objectives import QosObjective
+from planner.search.path_cost import Traffic
 
 Array = NDArray[np.float64]
 Cell = tuple[int, int]

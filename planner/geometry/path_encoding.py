@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.trajectory import merge_collinear
+from planner.model.trajectory import merge_collinear
 
 Array = NDArray[np.float64]
 DEAD_ZONE = 0.3  # share of each offset gene's half-range that means "no offset"

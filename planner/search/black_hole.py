@@ -19,12 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.clearance import ClearanceField, ExactClearance
-from planner.objectives import PathObjective
+from planner.geometry.clearance import ClearanceField, ExactClearance
+from planner.geometry.path_encoding import DetourEncoding, TurnEncoding
+from planner.model.trajectory import Trajectory, merge_collinear
 from planner.optimizers import Algorithm, OptimizeResult, Progress, optimize
-from planner.path_cost import PathTerms, Traffic, evaluate_paths
-from planner.path_encoding import DetourEncoding, TurnEncoding
-from planner.trajectory import Trajectory, merge_collinear
+from planner.search.objectives import PathObjective
+from planner.search.path_cost import PathTerms, Traffic, evaluate_paths
 
 Array = NDArray[np.float64]
 PROBE_BLOCK = 32  # candidates of a wait probe scored per call

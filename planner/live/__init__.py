@@ -1,0 +1,2 @@
+"""The live replanner, on the same engine: reported objects and the replan of the
+UAVs they touch, in flight."""
