@@ -283,15 +283,7 @@ def _least_square_distance(
     the cost (the any-angle shaping calls this thousands of times on a few cells)."""
     centre = cells.astype(float)
     d = p1 - p0
-    entry, exit_ = np.zeros(len(cells)), np.ones(len(cells))
-    for axis in range(2):
-        lo, hi = centre[:, axis] - 0.5, centre[:, axis] + 0.5
-        if abs(d[axis]) < 1e-15:
-            entry = np.where((p0[axis] < lo) | (p0[axis] > hi), 2.0, entry)
-            continue
-        t1, t2 = (lo - p0[axis]) / d[axis], (hi - p0[axis]) / d[axis]
-        entry = np.maximum(entry, np.minimum(t1, t2))
-        exit_ = np.minimum(exit_, np.maximum(t1, t2))
+    entry, exit_ = _slabs(p0, d, centre)
     if (entry <= exit_).any():
         return 0.0  # it crosses a square
     least = min(
@@ -339,17 +331,7 @@ def _segment_square_distance(
     vertex of one of them, so the endpoints and the square's corners are enough."""
     centre = cells.astype(float)
     d = p1 - p0
-    # Does the segment cross the square? (slab clipping)
-    entry, exit_ = np.zeros(len(cells)), np.ones(len(cells))
-    for axis in range(2):
-        lo, hi = centre[:, axis] - 0.5, centre[:, axis] + 0.5
-        if abs(d[axis]) < 1e-15:
-            outside = (p0[axis] < lo) | (p0[axis] > hi)
-            entry = np.where(outside, 2.0, entry)
-            continue
-        t1, t2 = (lo - p0[axis]) / d[axis], (hi - p0[axis]) / d[axis]
-        entry = np.maximum(entry, np.minimum(t1, t2))
-        exit_ = np.minimum(exit_, np.maximum(t1, t2))
+    entry, exit_ = _slabs(p0, d, centre)
     crosses = entry <= exit_
 
     candidates = [_point_to_square(p0, centre), _point_to_square(p1, centre)]
@@ -367,6 +349,23 @@ def _segment_square_distance(
     dist = np.where(crosses, 0.0, stack[best, cols])
     tau = np.where(crosses, np.clip(entry, 0, 1), tau_stack[best, cols])
     return dist, tau
+
+
+def _slabs(
+    p0: NDArray[np.float64], d: NDArray[np.float64], centre: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Where the segment p0 + t·d (t in [0, 1]) enters and leaves each unit square
+    centred on `centre` (slab clipping): it crosses the squares where entry <= exit."""
+    entry, exit_ = np.zeros(len(centre)), np.ones(len(centre))
+    for axis in range(2):
+        lo, hi = centre[:, axis] - 0.5, centre[:, axis] + 0.5
+        if abs(d[axis]) < 1e-15:
+            entry = np.where((p0[axis] < lo) | (p0[axis] > hi), 2.0, entry)
+            continue
+        t1, t2 = (lo - p0[axis]) / d[axis], (hi - p0[axis]) / d[axis]
+        entry = np.maximum(entry, np.minimum(t1, t2))
+        exit_ = np.minimum(exit_, np.maximum(t1, t2))
+    return entry, exit_
 
 
 def _point_to_square(p: NDArray[np.float64], centre: NDArray[np.float64]) -> NDArray[np.float64]:
