@@ -4,7 +4,7 @@ An 8-connected path through cell centres is up to 8 % longer than the straight l
 it approximates. Pulling the string (from each anchor, jump to the furthest later point
 the UAV's disc can reach in a straight line) gives the polyline a UAV actually wants to
 fly. Every shortcut is tested exactly, with the same disc-against-square distance as the
-safety check (`planner.check.safety.segment_clearance`), so the result never enters a blocked
+safety check (`planner.geometry.squares.segment_clearance`), so the result never enters a blocked
 cell when the grid path did not.
 """
 
@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from planner.check.safety import segment_clearance
 from planner.geometry.clearance import SQUARE_REACH, distance_to_polyline, segment_square_distance
+from planner.geometry.squares import segment_clearance
 from planner.model.trajectory import merge_collinear
 
 Array = NDArray[np.float64]
@@ -65,7 +65,7 @@ def pull_string(cells: Array, radius: float, blocked: NDArray[np.bool_]) -> Arra
 
 def segments_clearance(p0: Array, p1: Array, cells: NDArray[np.int64]) -> Array:
     """Exact distance from each segment p0[k]-p1[k] (S, 2) to the nearest of the given
-    cells' unit squares (C, 2): the test of `planner.check.safety.segment_clearance`, for many
+    cells' unit squares (C, 2): the test of `planner.geometry.squares.segment_clearance`, for many
     segments at once (inf without cells)."""
     if not len(cells):
         return np.full(len(p0), np.inf)

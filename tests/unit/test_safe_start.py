@@ -7,15 +7,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.check.safety import (
-    _segment_square_distance,
-    cell_conflicts,
-    closest_approach,
-    uav_conflicts,
-)
+from planner.check.safety import cell_conflicts, closest_approach, uav_conflicts
 from planner.experiments.scenario_generator import random_scenario
 from planner.geometry.clearance import ExactClearance
 from planner.geometry.grid_search import GridGraph, path_length
+from planner.geometry.squares import pairs_square_distance
 from planner.model.scenario import UAVSpec
 from planner.model.trajectory import Trajectory
 from planner.pipeline import PlannerSettings, plan
@@ -65,7 +61,11 @@ def test_many_segments_are_measured_as_the_safety_check_measures_one() -> None:
         p1 = np.where(rng.random((6, 1)) < 0.3, p0, rng.uniform(-1, 8, (6, 2)))
         p1[0, 0] = p0[0, 0]  # one parallel to an axis
         cells = rng.integers(0, 8, (int(rng.integers(1, 7)), 2))
-        want = [_segment_square_distance(a, b, cells)[0].min() for a, b in zip(p0, p1, strict=True)]
+        rows = len(cells)
+        want = [
+            pairs_square_distance(np.tile(a, (rows, 1)), np.tile(b, (rows, 1)), cells)[0].min()
+            for a, b in zip(p0, p1, strict=True)
+        ]
         assert segments_clearance(p0, p1, cells) == pytest.approx(want, abs=1e-12)
 
 
