@@ -84,7 +84,10 @@ def horizontal_path_m(track) -> float:
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_square_mission_is_flown_and_landed_at_the_last_waypoint(autopilot):
     ardupilot = autopilot == "ardupilot"
-    sim = Simulator([VehicleConfig(sysid=1, home=HOME, autopilot=autopilot)], speedup=20.0)
+    # Over TCP: the test counts every MISSION_ITEM_REACHED, and a starved reader on a busy
+    # machine loses UDP datagrams (PX4 repeats only the last one). UDP has its own tests.
+    config = VehicleConfig(sysid=1, home=HOME, autopilot=autopilot, transport="tcp")
+    sim = Simulator([config], speedup=20.0)
     with sim.running():
         link = mavutil.mavlink_connection(sim.connection_string(1), source_system=255)
         try:
