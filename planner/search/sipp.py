@@ -23,7 +23,9 @@ widened by half of that. Every schedule is nevertheless checked exactly by the c
 
 from __future__ import annotations
 
+import functools
 import math
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -35,6 +37,7 @@ from planner.model.trajectory import Trajectory
 
 Array = NDArray[np.float64]
 STEP = 0.1  # cells between sample points, and cells another UAV moves between samples
+CHUNK = 32  # another UAV's samples are first tested in runs of this many
 
 
 @dataclass(frozen=True)
@@ -50,42 +53,174 @@ def forbidden_intervals(
     samples: Array, spacing: float, speed: float, radius: float, others: Sequence[Mover]
 ) -> tuple[NDArray[np.intp], Array, Array]:
     """Per sample point k: merged intervals (k, lo, hi) in which hovering at it is unsafe,
-    widened by half the time to pass one sample, sorted by k then lo."""
+    widened by half the time to pass one sample, sorted by k then lo.
+
+    Each other UAV's positions every `step / v_j` seconds are sampled once per flight
+    (`_sampled`). Those in the path's box widened by the pair's reach, and in a square of
+    a coarse raster next to one of the path's own, go into one k-d tree, queried once
+    against the path's samples with the largest reach; each pair is then kept by its own
+    UAV's reach, tested as the tree tests it (squared distance against squared reach)."""
     lower = samples.min(axis=0)
     upper = samples.max(axis=0)
     passing = spacing / speed / 2
-    slots, los, his = [], [], []
-    tree = cKDTree(samples)
+    flights = []
     for other in others:
-        need = radius + other.radius + spacing / 2 + STEP / 2
         period = STEP / max(other.speed, 1e-9)
-        traj = other.trajectory
-        if _apart(traj.xy, lower - need, upper + need):
-            continue  # never near: no need to sample it
-        times = np.arange(0.0, traj.end_time + period, period)
-        times[-1] = min(times[-1], traj.end_time)
-        where = traj.at(times)
-        near = np.all((where >= lower - need) & (where <= upper + need), axis=1)
-        if not near.any():
-            continue
-        times, where = times[near], where[near]
-        pairs = cKDTree(where).sparse_distance_matrix(tree, need, output_type="ndarray")
-        if not len(pairs):
-            continue
-        slots.append(pairs["j"].astype(np.intp))
-        at = times[pairs["i"]]
-        widen = period / 2 + passing
-        los.append(at - widen)
-        his.append(at + widen)
-    if not slots:
-        return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
-    return _merge(np.concatenate(slots), np.concatenate(los), np.concatenate(his))
+        flights.append((radius + other.radius + spacing / 2 + STEP / 2, period, other))
+    if not flights:
+        return _none()
+    need = np.array([f[0] for f in flights])
+    sampled = [_sampled(f[2].trajectory, f[1]) for f in flights]
+    box_low = np.array([s.box[0] for s in sampled])
+    box_high = np.array([s.box[1] for s in sampled])
+    low = lower - need[:, None]
+    high = upper + need[:, None]
+    # Never near: its points' box is apart from the path's, widened (a margin for the
+    # interpolation's rounding: its positions lie in the box of its points).
+    apart = np.any(box_low > high + 1e-9, axis=1) | np.any(box_high < low - 1e-9, axis=1)
+    kept = np.flatnonzero(~apart).tolist()
+    if not kept:
+        return _none()
+    side = 1.5 * float(need[kept].max())
+    raster = _Raster.of(samples, lower, side)
+    # Runs of CHUNK samples whose box meets both the widened path's box and the raster
+    # (a superset of those holding a point that matters), then their points one by one.
+    chunk_low = np.concatenate([sampled[k].chunk_low for k in kept])
+    chunk_high = np.concatenate([sampled[k].chunk_high for k in kept])
+    chunks = [len(sampled[k].chunk_low) for k in kept]
+    chunk_owner = np.repeat(np.array(kept), chunks)
+    meets = np.all(
+        (chunk_high >= low[chunk_owner]) & (chunk_low <= high[chunk_owner]), axis=1
+    ) & raster.meets(chunk_low, chunk_high)
+    if not meets.any():
+        return _none()
+    counts = np.array([len(sampled[k].times) for k in kept])
+    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    first_chunk = np.concatenate([[0], np.cumsum(chunks)[:-1]])
+    mover = np.repeat(np.arange(len(kept)), chunks)[meets]
+    start = (np.flatnonzero(meets) - first_chunk[mover]) * CHUNK
+    lengths = np.minimum(CHUNK, counts[mover] - start)
+    base = np.repeat(offsets[mover] + start - np.cumsum(lengths) + lengths, lengths)
+    index = base + np.arange(int(lengths.sum()))
+    where = np.concatenate([sampled[k].where for k in kept])[index]
+    times = np.concatenate([sampled[k].times for k in kept])[index]
+    owner = np.repeat(np.array(kept)[mover], lengths)
+    near = np.all((where >= low[owner]) & (where <= high[owner]), axis=1)
+    near[near] = raster.holds(where[near])
+    where, times, owner = where[near], times[near], owner[near]
+    if not len(where):
+        return _none()
+    pairs = cKDTree(where).sparse_distance_matrix(
+        cKDTree(samples), float(need[owner].max()), output_type="ndarray"
+    )
+    i, j = pairs["i"], pairs["j"]
+    reach = need[owner[i]]
+    gap = where[i] - samples[j]
+    keep = gap[:, 0] * gap[:, 0] + gap[:, 1] * gap[:, 1] <= reach * reach
+    if not keep.any():
+        return _none()
+    i, j = i[keep], j[keep]
+    at = times[i]
+    periods = np.array([f[1] for f in flights])
+    wide = periods[owner[i]] / 2 + passing
+    return _merge(j.astype(np.intp), at - wide, at + wide)
 
 
-def _apart(xy: Array, lower: Array, upper: Array) -> bool:
-    """Whether a flight through the points `xy` stays outside the box [lower, upper]
-    (its positions lie in the box of its points; a margin for interpolation's rounding)."""
-    return bool(np.any(xy.min(axis=0) > upper + 1e-9) or np.any(xy.max(axis=0) < lower - 1e-9))
+def _none() -> tuple[NDArray[np.intp], Array, Array]:
+    return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
+
+
+@dataclass(frozen=True)
+class _Raster:
+    """Squares of side `side` from `origin`: those holding one of a path's samples and
+    their eight neighbours. Every point within side / 1.5 of a sample lies in one (the
+    squares' indices of two points that close differ by at most one, whatever the
+    rounding)."""
+
+    origin: Array
+    side: float
+    marked: NDArray[np.bool_]
+    counts: NDArray[np.intp]  # marked squares below and left of each corner (summed table)
+
+    @classmethod
+    def of(cls, samples: Array, origin: Array, side: float) -> _Raster:
+        cells = np.floor((samples - origin) / side).astype(np.intp) + 1
+        size = cells.max(axis=0) + 2
+        raster = np.zeros(size, dtype=bool)
+        raster[cells[:, 0], cells[:, 1]] = True
+        grown = raster.copy()
+        grown[1:] |= raster[:-1]
+        grown[:-1] |= raster[1:]
+        marked = grown.copy()
+        marked[:, 1:] |= grown[:, :-1]
+        marked[:, :-1] |= grown[:, 1:]
+        counts = np.zeros(size + 1, dtype=np.intp)
+        counts[1:, 1:] = marked.cumsum(axis=0).cumsum(axis=1)
+        return cls(origin, side, marked, counts)
+
+    def _square(self, points: Array) -> NDArray[np.intp]:
+        return np.floor((points - self.origin) / self.side).astype(np.intp) + 1
+
+    def holds(self, points: Array) -> NDArray[np.bool_]:
+        """Which points lie in a marked square."""
+        at = self._square(points)
+        inside = np.all((at >= 0) & (at < self.marked.shape), axis=1)
+        out = np.zeros(len(points), dtype=bool)
+        out[inside] = self.marked[at[inside, 0], at[inside, 1]]
+        return out
+
+    def meets(self, low: Array, high: Array) -> NDArray[np.bool_]:
+        """Which boxes [low, high] overlap a marked square."""
+        top = np.array(self.marked.shape) - 1
+        a = np.clip(self._square(low), 0, top + 1)
+        b = np.clip(self._square(high), -1, top) + 1
+        c = self.counts
+        total = (
+            c[b[:, 0], b[:, 1]] - c[a[:, 0], b[:, 1]] - c[b[:, 0], a[:, 1]] + c[a[:, 0], a[:, 1]]
+        )
+        meets: NDArray[np.bool_] = np.all(a < b, axis=1) & (total > 0)
+        return meets
+
+
+@dataclass(frozen=True)
+class _Samples:
+    """Another UAV's positions every `period` seconds, and the box of its points."""
+
+    times: Array
+    where: Array
+    box: tuple[Array, Array]
+    chunk_low: Array  # box of each run of CHUNK samples
+    chunk_high: Array
+
+
+_SAMPLED: dict[tuple[int, float], tuple[weakref.ref[Trajectory], _Samples]] = {}
+"""Samples of the flights being held fixed, by flight (its identity) and period: the
+safe start asks about the same flights again and again while only one changes at a
+time. An entry goes when its flight is dropped."""
+
+
+def _sampled(trajectory: Trajectory, period: float) -> _Samples:
+    key = (id(trajectory), period)
+    hit = _SAMPLED.get(key)
+    if hit is not None and hit[0]() is trajectory:
+        return hit[1]
+    times = np.arange(0.0, trajectory.end_time + period, period)
+    times[-1] = min(times[-1], trajectory.end_time)
+    xy = trajectory.xy
+    where = trajectory.at(times)
+    padded = np.concatenate([where, np.repeat(where[-1:], -len(where) % CHUNK, axis=0)])
+    runs = padded.reshape(-1, CHUNK, 2)
+    samples = _Samples(
+        times, where, (xy.min(axis=0), xy.max(axis=0)), runs.min(axis=1), runs.max(axis=1)
+    )
+    _SAMPLED[key] = (weakref.ref(trajectory, functools.partial(_forget, key)), samples)
+    return samples
+
+
+def _forget(key: tuple[int, float], ref: weakref.ref[Trajectory]) -> None:
+    hit = _SAMPLED.get(key)
+    if hit is not None and hit[0] is ref:
+        del _SAMPLED[key]
 
 
 def _merge(slot: NDArray[np.intp], lo: Array, hi: Array) -> tuple[NDArray[np.intp], Array, Array]:
