@@ -76,7 +76,7 @@ def fly(work: Path, yard: dict[str, Any]) -> dict[str, Any]:
                 [
                     sys.executable,
                     "-m",
-                    "gcs.cli.main",
+                    "gcs.cli",
                     "sitl",
                     "--scenario",
                     str(work / "grid.json"),
@@ -243,7 +243,7 @@ def main() -> int:
             [
                 sys.executable,
                 "-m",
-                "gcs.cli.main",
+                "gcs.cli",
                 "import",
                 str(work / "alpha.plan"),
                 str(work / "bravo.plan"),

@@ -47,7 +47,7 @@ class ServiceProcess:
         command = [
             sys.executable,
             "-m",
-            "gcs.cli.main",
+            "gcs.cli",
             "serve",
             "--port",
             str(self.port),

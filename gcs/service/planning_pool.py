@@ -29,6 +29,7 @@ from dataclasses import asdict, dataclass
 from multiprocessing.managers import SyncManager
 from typing import Any, Protocol
 
+from gcs.service.parent_watch import exit_with_parent
 from planner.model.scenario import load_scenario
 from planner.pipeline import PlannerSettings, PlanProgress, plan
 
@@ -173,18 +174,6 @@ class ThreadPlanner:
 def planner_for(workers: int, on_progress: ProgressSink) -> PlanRunner:
     """Worker processes, or (0 workers) a thread of this process."""
     return PlanningPool(workers, on_progress) if workers > 0 else ThreadPlanner(on_progress)
-
-
-def exit_with_parent(owner_pid: int) -> None:
-    """In each helper process: end it if the service dies without cleaning up (a crash,
-    SIGKILL), rather than leave an orphan planning for nobody."""
-
-    def watch() -> None:
-        while os.getppid() == owner_pid:
-            time.sleep(1.0)
-        os._exit(0)
-
-    threading.Thread(target=watch, daemon=True, name="exit-with-parent").start()
 
 
 def run_plan(

@@ -130,7 +130,7 @@ def test_mvo_gcs_fly_flies_real_arducopter_at_speed(
         instances(homes, tmp_path, speedup(scenario), params) as sitl,
         observing(_ports(sitl), asked) as observer,
     ):
-        command = [sys.executable, "-m", "gcs.cli.main", "fly", str(source)]
+        command = [sys.executable, "-m", "gcs.cli", "fly", str(source)]
         command += ["--vehicles", ",".join(i.connection for i in sitl), "--connect-timeout", "60"]
         command += ["--max-speed", f"{speed:g}", *PLANNING]
         fly = subprocess.run(command, capture_output=True, text=True, timeout=1800)

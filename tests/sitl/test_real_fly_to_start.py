@@ -38,7 +38,7 @@ def test_real_arducopter_off_its_cell_centre_flies_to_its_start_first(tmp_path: 
         instances(homes, tmp_path, speedup(scenario)) as sitl,
         observing([i.port for i in sitl]) as observer,
     ):
-        command = [sys.executable, "-m", "gcs.cli.main", "fly", str(source)]
+        command = [sys.executable, "-m", "gcs.cli", "fly", str(source)]
         command += ["--vehicles", ",".join(i.connection for i in sitl), "--connect-timeout", "60"]
         command += ["--time-budget", "0", "--seed", "1"]
         fly = subprocess.run(command, capture_output=True, text=True, timeout=1800)
