@@ -12,6 +12,8 @@ schedule the console shows, and the exact safety check judges them.
 
 from __future__ import annotations
 
+import bisect
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -83,9 +85,9 @@ class _Vehicle:
 
     path: PlannedPath
     limits: CopterLimits
-    vertex_s: Floats
-    vertex_speed: Floats  # the highest speed at each vertex (corners, the end)
-    leg_speed: Floats  # m/s of each leg
+    vertex_s: list[float]  # plain floats: stepped 20 times a simulated second, one by one
+    vertex_speed: list[float]  # the highest speed at each vertex (corners, the end)
+    leg_speed: list[float]  # m/s of each leg
     s: float = 0.0
     v: float = 0.0
     a: float = 0.0
@@ -103,7 +105,7 @@ class _Vehicle:
         turns = turn_angles(path.xy) if len(s) > 2 else np.zeros(0)
         at_rest = np.abs(s[:, None] - np.asarray(stops)[None, :]).min(axis=1, initial=np.inf)
         knots, bound = speed_profile(s, leg_speed, turns, limits, at_rest < STOP_MATCH_M)
-        return cls(path, limits, knots, bound, leg_speed)
+        return cls(path, limits, knots.tolist(), bound.tolist(), np.asarray(leg_speed).tolist())
 
     def cap(self, rule: StoppingRule) -> float:
         """The speed the vehicle aims for here: its leg's (or its gate's), until it must
@@ -126,15 +128,15 @@ class _Vehicle:
             leg = min(leg, self.approach_m_s)
         peak = self.v + max(self.a, 0.0) ** 2 / (2 * self.limits.jerk_m_s3)  # once `a` is 0
         for j in range(k, min(k + 2, len(self.vertex_s))):
-            ahead, gap = float(self.vertex_speed[j]), float(self.vertex_s[j] - self.s)
-            late = gap <= self.limits.slowing_distance(self.v, self.a, ahead)
-            if peak > ahead and late:
+            ahead = self.vertex_speed[j]
+            if peak > ahead and self.vertex_s[j] - self.s <= self.limits.slowing_distance(
+                self.v, self.a, ahead
+            ):
                 self.slowing_for.add(j)
-        return min([leg, *(float(self.vertex_speed[j]) for j in self.slowing_for)])
+        return min([leg, *(self.vertex_speed[j] for j in self.slowing_for)])
 
     def _next_vertex(self) -> int:
-        k = int(np.searchsorted(self.vertex_s, self.s, side="right"))
-        return min(k, len(self.vertex_s) - 1)
+        return min(bisect.bisect_right(self.vertex_s, self.s), len(self.vertex_s) - 1)
 
     def step(self, target: float, dt: float) -> None:
         """Chase `target` speed: acceleration from a square-root shaper, ramped at the jerk
@@ -143,9 +145,10 @@ class _Vehicle:
         limits = self.limits
         jerk = limits.stop_jerk_m_s3 if self.gate == Gate.STOP else limits.jerk_m_s3
         error = target - self.v
-        wanted = np.sign(error) * min(np.sqrt(2 * jerk * abs(error)), limits.accel_m_s2)
+        wanted = min(math.sqrt(2 * jerk * abs(error)), limits.accel_m_s2)
+        wanted = math.copysign(wanted, error) if error else 0.0
         change = jerk * dt
-        self.a += float(np.clip(wanted - self.a, -change, change))
+        self.a += min(max(wanted - self.a, -change), change)
         self.v = max(0.0, self.v + self.a * dt)
         if self.v == 0.0 and self.a < 0:
             self.a = 0.0

@@ -13,6 +13,7 @@ vehicle can still stop (`gcs.fleet.gatekeeper`).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from enum import StrEnum
@@ -275,8 +276,7 @@ class StoppingRule:
 
     def go_room_m(self, limits: CopterLimits) -> float:
         """Room to speed up to cruise from a stop and still stop short."""
-        cruise = limits.speed_m_s
-        return limits.change_distance(0.0, cruise) + self.needed_m(cruise, 0.0, limits)
+        return _go_room_m(self, limits)
 
     def needed_m(
         self, speed: float, accel: float, limits: CopterLimits, creeping: bool = False
@@ -284,3 +284,11 @@ class StoppingRule:
         buffer = self.creep_buffer_m if creeping else self.buffer_m
         stopping = limits.stopping_distance(speed, accel, paused=creeping)
         return stopping + speed * self.reaction_s + buffer
+
+
+@functools.lru_cache(maxsize=1024)
+def _go_room_m(rule: StoppingRule, limits: CopterLimits) -> float:
+    """StoppingRule.go_room_m, asked of every gate at every step of a flight and its
+    timing, for a handful of (rule, limits) pairs."""
+    cruise = limits.speed_m_s
+    return limits.change_distance(0.0, cruise) + rule.needed_m(cruise, 0.0, limits)

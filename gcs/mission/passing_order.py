@@ -20,7 +20,9 @@ flight says so (`narrowest_margin_m`).
 
 from __future__ import annotations
 
+import bisect
 import itertools
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -119,22 +121,26 @@ class Waits:
     `at[k]` only once the leader has passed `after[k]`, both in metres along their paths.
 
     Sorted by `at`; `needed` is the running maximum of `after`, so the first `at` still
-    waiting for the leader is one binary search away. `plan_times` are the plan's times
-    of each wait's two ends (leader leaves, follower arrives): the leader's is earlier."""
+    waiting for the leader is one binary search away (on plain floats: a flight and its
+    timing ask every vehicle's limits many times a second). `plan_times` are the plan's
+    times of each wait's two ends (leader leaves, follower arrives): the leader's is
+    earlier."""
 
     leader: str
     at: Floats
     after: Floats
     plan_times: Floats  # (k, 2): leader leaves, follower arrives
-    needed: Floats = field(init=False, repr=False)
+    needed: list[float] = field(init=False, repr=False)
+    _at: list[float] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "needed", np.maximum.accumulate(self.after))
+        object.__setattr__(self, "needed", np.maximum.accumulate(self.after).tolist())
+        object.__setattr__(self, "_at", np.asarray(self.at).tolist())
 
     def limit(self, leader_at: float) -> float:
         """How far along its path the follower may go while the leader is at `leader_at`."""
-        k = int(np.searchsorted(self.needed, leader_at, side="left"))
-        return float(self.at[k]) if k < len(self.at) else np.inf
+        k = bisect.bisect_left(self.needed, leader_at)
+        return self._at[k] if k < len(self._at) else math.inf
 
 
 @dataclass(frozen=True)
