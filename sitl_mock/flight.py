@@ -376,10 +376,12 @@ class FlightController:
 
     def _check_fence(self, now: float) -> None:
         """Copter::fence_check: checked armed or not; acted on only when armed."""
-        had = self.fence.breaches
+        had, types = self.fence.breaches, self.fence_types()
+        if not had and not types:
+            return  # nothing enabled and nothing to clear: a check would find nothing
         east, north, up = self.body.position
         breach = self.fence.check(
-            self.fence_types(),
+            types,
             self.zones(),
             (float(east), float(north), float(up)),
             (self.home.east, self.home.north),
