@@ -1,13 +1,18 @@
 """Upload, download, clear and set-current against simulated vehicles, and the mission
-protocol's failure modes (numbers as in the MAVLink notes)."""
+protocol's failure modes (numbers as in the MAVLink notes), on the virtual clock: the
+vehicles in memory, their faults (loss, latency, jitter, silence, reboots) on the one
+clock, so the protocol's timeouts are tested without waiting for them. The same
+transfers over real sockets are the conformance tests'."""
 
 from __future__ import annotations
 
 import asyncio
+from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import replace
 
 import pytest
 
+from gcs.mavlink import client
 from gcs.mavlink.errors import (
     GcsError,
     LinkLostError,
@@ -18,14 +23,48 @@ from gcs.mavlink.errors import (
     MissionTimeoutError,
     NoSpaceError,
 )
+from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Command, Mission, MissionItem
 from gcs.mavlink.mission_protocol import MissionClient, TransferPolicy, first_mismatch
 from gcs.mavlink.vehicle_state import MAV_STATE_BOOT
-from sitl_mock import Faults, VehicleConfig
+from sitl_mock import Faults, Simulator, VehicleConfig
+from tests.inprocess.vehicles import SimulatedVehicles
 
 from .conftest import CMAC, FAST_LINK, square_mission, vehicle
 
+pytestmark = [pytest.mark.virtual_clock]
 BOTH = ["ardupilot", "px4"]
+Start = Callable[..., Awaitable[Simulator]]
+Connect = Callable[..., Awaitable[VehicleLink]]
+
+
+@pytest.fixture
+def simulator(vehicles: SimulatedVehicles) -> Start:
+    """Simulated vehicles in memory (in place of the package's simulators on sockets)."""
+
+    async def start(configs: list[VehicleConfig], seed: int = 0) -> Simulator:
+        return await vehicles.start([replace(c, transport="memory") for c in configs], seed)
+
+    return start
+
+
+@pytest.fixture
+async def links(vehicles: SimulatedVehicles) -> AsyncIterator[Connect]:
+    """Links to them over in-memory ports; all closed when the test ends."""
+    opened: list[VehicleLink] = []
+
+    async def connect(
+        sim: Simulator, sysid: int, settings: LinkSettings = FAST_LINK
+    ) -> VehicleLink:
+        link = await client.connect(
+            sim.connection_string(sysid), settings=settings, opener=vehicles.open
+        )
+        opened.append(link)
+        return link
+
+    yield connect
+    for link in opened:
+        await link.close()
 
 
 def sent_types(link) -> list[str]:
@@ -43,7 +82,7 @@ def sent_types(link) -> list[str]:
 
 @pytest.mark.parametrize("autopilot", BOTH)
 async def test_upload_download_set_current_and_clear(simulator, links, autopilot: str) -> None:
-    sim = simulator([vehicle(1, autopilot)])
+    sim = await simulator([vehicle(1, autopilot)])
     link = await links(sim, 1)
     client = MissionClient(link)
     mission = square_mission(link.autopilot, hold_s=2.5)
@@ -60,7 +99,7 @@ async def test_upload_download_set_current_and_clear(simulator, links, autopilot
 
 async def test_ardupilot_item_zero_is_home_and_never_eats_the_takeoff(simulator, links) -> None:
     """Failure mode 2: seq 0 comes back as the vehicle's home, the takeoff stays seq 1."""
-    sim = simulator([vehicle(1, "ardupilot")])
+    sim = await simulator([vehicle(1, "ardupilot")])
     link = await links(sim, 1)
     mission = square_mission(Autopilot.ARDUPILOT)
     bogus_home = replace(mission.items[0], x=mission.items[0].x + 5000, z=0.0)
@@ -72,7 +111,7 @@ async def test_ardupilot_item_zero_is_home_and_never_eats_the_takeoff(simulator,
 
 
 async def test_a_mission_of_the_wrong_flavour_is_refused_before_sending(simulator, links):
-    sim = simulator([vehicle(1, "px4")])
+    sim = await simulator([vehicle(1, "px4")])
     link = await links(sim, 1)
     with pytest.raises(GcsError, match="built for ARDUPILOT"):
         await MissionClient(link).upload(square_mission(Autopilot.ARDUPILOT))
@@ -81,7 +120,7 @@ async def test_a_mission_of_the_wrong_flavour_is_refused_before_sending(simulato
 @pytest.mark.parametrize("autopilot", BOTH)
 async def test_an_empty_mission_does_not_hang(simulator, links, autopilot: str) -> None:
     """Failure mode 11: count 0 clears the mission and returns at once."""
-    sim = simulator([vehicle(1, autopilot)])
+    sim = await simulator([vehicle(1, autopilot)])
     link = await links(sim, 1)
     client = MissionClient(link)
     await client.upload(square_mission(link.autopilot))
@@ -93,7 +132,7 @@ async def test_an_empty_mission_does_not_hang(simulator, links, autopilot: str) 
 
 async def test_an_upload_right_after_boot_waits_for_the_boot_to_end(simulator, links) -> None:
     """Real ArduCopter answers MISSION_COUNT with NO_SPACE while it boots."""
-    sim = simulator([vehicle(1)], speedup=1.0)
+    sim = await simulator([vehicle(1)])
     link = await links(sim, 1, settings=replace(FAST_LINK, link_timeout_s=4.0))
     assert link.state.booting
     mission = square_mission(link.autopilot)
@@ -103,7 +142,7 @@ async def test_an_upload_right_after_boot_waits_for_the_boot_to_end(simulator, l
 
 async def test_timeouts_are_settable(simulator, links) -> None:
     """Failure mode 1: a slow link needs longer timeouts than a fast one."""
-    sim = simulator([vehicle(1, faults=Faults(latency_s=0.15))], speedup=1.0)
+    sim = await simulator([vehicle(1, faults=Faults(latency_s=0.15))])
     link = await links(sim, 1)
     mission = square_mission(link.autopilot, n_waypoints=1)
     impatient = MissionClient(
@@ -118,7 +157,7 @@ async def test_timeouts_are_settable(simulator, links) -> None:
 async def test_invalid_sequence_mid_transfer_is_not_fatal(simulator, links) -> None:
     """Failure mode 3 (and 7's duplicates): reordered and doubled packets both ways."""
     faults = Faults(duplicate=0.3, reorder=0.3)
-    sim = simulator([vehicle(1, faults=faults)], seed=3)
+    sim = await simulator([vehicle(1, faults=faults)], seed=3)
     link = await links(sim, 1)
     acks: list[int] = []
     link.on_message(lambda m: acks.append(m.type), ["MISSION_ACK"])
@@ -129,7 +168,7 @@ async def test_invalid_sequence_mid_transfer_is_not_fatal(simulator, links) -> N
 
 async def test_a_lost_final_ack_is_recovered_by_resending_the_last_item(simulator, links):
     """Failure mode 4: the vehicle re-acknowledges a repeated last item."""
-    sim = simulator([vehicle(1)])
+    sim = await simulator([vehicle(1)])
     link = await links(sim, 1)
     deliver = link._received
     dropped: list[int] = []
@@ -152,8 +191,8 @@ async def test_a_noisy_link_completes_every_upload(simulator, links) -> None:
     """Failure mode 5: 30 % loss each way and 200 ms jitter, 20 of 20 uploads verified."""
     faults = Faults(loss_in=0.3, loss_out=0.3, jitter_s=0.2)
     flavours = ["ardupilot", "px4"] * 10
-    sim = simulator(
-        [vehicle(k, flavours[k - 1], faults=faults) for k in range(1, 21)], speedup=1.0, seed=5
+    sim = await simulator(
+        [vehicle(k, flavours[k - 1], faults=faults) for k in range(1, 21)], seed=5
     )
     connected = await asyncio.gather(
         *(
@@ -173,7 +212,7 @@ async def test_verification_catches_a_mission_changed_behind_our_back(
     simulator, links, monkeypatch: pytest.MonkeyPatch
 ):
     """Failure mode 6: what the vehicle holds is compared item by item after the upload."""
-    sim = simulator([vehicle(1)])
+    sim = await simulator([vehicle(1)])
     link = await links(sim, 1)
     other_gcs = await links(sim, 1)
     ours, theirs = square_mission(link.autopilot, 4), square_mission(link.autopilot, 4, 3.0)
@@ -191,7 +230,7 @@ async def test_verification_catches_a_mission_changed_behind_our_back(
 
 
 async def test_a_rejected_mission_keeps_the_previous_one(simulator, links) -> None:
-    sim = simulator([vehicle(1)])
+    sim = await simulator([vehicle(1)])
     link = await links(sim, 1)
     client = MissionClient(link)
     previous = square_mission(link.autopilot, 2)
@@ -206,7 +245,7 @@ async def test_a_rejected_mission_keeps_the_previous_one(simulator, links) -> No
 async def test_definitive_refusals_are_not_retried(simulator, links) -> None:
     """Failure mode 7: NO_SPACE ends the upload after one MISSION_COUNT."""
     config = VehicleConfig(sysid=1, home=CMAC, mission_capacity=5)
-    sim = simulator([config])
+    sim = await simulator([config])
     link = await links(sim, 1)
     sent = sent_types(link)
     with pytest.raises(NoSpaceError, match="more items than the vehicle can store"):
@@ -216,7 +255,7 @@ async def test_definitive_refusals_are_not_retried(simulator, links) -> None:
 
 async def test_every_wait_is_bounded(simulator, links) -> None:
     """Failure mode 8: a vehicle gone silent mid-upload ends in an error, not a hang."""
-    sim = simulator([vehicle(1)])
+    sim = await simulator([vehicle(1)])
     link = await links(sim, 1)
     sim.silence(1, seconds=2000.0)
     async with asyncio.timeout(60):  # a hang detector, far above the protocol's own bounds
@@ -228,7 +267,7 @@ async def test_every_wait_is_bounded(simulator, links) -> None:
 
 async def test_another_ground_station_mid_upload_is_denied_without_retrying(simulator, links):
     """Failure mode 9: DENIED once, no re-request loop."""
-    sim = simulator([vehicle(1)])
+    sim = await simulator([vehicle(1)])
     link = await links(sim, 1)
     other_gcs = await links(sim, 1)
     await until_booted(link)
@@ -242,8 +281,11 @@ async def test_another_ground_station_mid_upload_is_denied_without_retrying(simu
 
 
 async def test_a_reboot_mid_upload_ends_in_a_clear_error(simulator, links) -> None:
-    sim = simulator([vehicle(1, faults=Faults(latency_s=0.5))], speedup=20.0)
-    link = await links(sim, 1)
+    sim = await simulator([vehicle(1, faults=Faults(latency_s=0.5))])
+    # The default link timeout (the notes: 3-5 s): at the tests' quick 1 s, the reboot's
+    # silence (1 s, seen 0.5 s late) would end the upload as a lost link before the new
+    # boot is heard.
+    link = await links(sim, 1, settings=replace(FAST_LINK, link_timeout_s=4.0))
     await until_booted(link)
     with link.subscribe(["MISSION_REQUEST", "MISSION_REQUEST_INT"]) as asked:
         upload = asyncio.create_task(MissionClient(link).upload(square_mission(link.autopilot, 30)))
