@@ -67,7 +67,7 @@ def distance_to_polyline(
     rel = points[:, None, :] - a[None]  # (M, S, 2)
     with np.errstate(invalid="ignore", divide="ignore"):
         u = np.where(length2 > 0, np.einsum("msi,si->ms", rel, d) / length2, 0.0)
-    u = np.clip(u, 0.0, 1.0)
+    u = np.minimum(np.maximum(u, 0.0), 1.0)  # np.clip's value, faster on small arrays
     gap = rel - u[..., None] * d[None]
     distance = np.sqrt(np.einsum("msi,msi->ms", gap, gap)).min(axis=1)
     return distance
@@ -80,25 +80,30 @@ def segment_square_distance(
     (..., 2) and broadcast together: 0 if the segment enters the square, else the least
     of its ends' distances to the square and the square's corners' to the segment (two
     disjoint convex shapes are closest at a vertex of one of them)."""
+    # Called thousands of times on small arrays (the shaping's tightening), so in few
+    # numpy calls: the two axes as views rather than reductions, each |a - centre| once.
     d = b - a
-    inside = np.abs(a - centre) <= 0.5  # per axis, for a segment parallel to it
+    off_a = np.abs(a - centre)
+    inside = off_a <= 0.5  # per axis, for a segment parallel to it
     with np.errstate(divide="ignore", invalid="ignore"):
         t1, t2 = (centre - 0.5 - a) / d, (centre + 0.5 - a) / d
     moving = d != 0
-    t_in = np.where(moving, np.minimum(t1, t2), np.where(inside, -np.inf, np.inf))
-    t_out = np.where(moving, np.maximum(t1, t2), np.where(inside, np.inf, -np.inf))
-    crosses = np.maximum(t_in.max(axis=-1), 0.0) <= np.minimum(t_out.min(axis=-1), 1.0)
+    beyond = np.where(inside, -np.inf, np.inf)
+    t_in = np.where(moving, np.minimum(t1, t2), beyond)
+    t_out = np.where(moving, np.maximum(t1, t2), -beyond)
+    enter = np.maximum(np.maximum(t_in[..., 0], t_in[..., 1]), 0.0)
+    crosses = enter <= np.minimum(np.minimum(t_out[..., 0], t_out[..., 1]), 1.0)
 
-    def to_square(p: NDArray[np.float64]) -> NDArray[np.float64]:
-        off = np.maximum(np.abs(p - centre) - 0.5, 0.0)
-        return np.hypot(off[..., 0], off[..., 1])
+    def to_square(off: NDArray[np.float64]) -> NDArray[np.float64]:
+        out = np.maximum(off - 0.5, 0.0)
+        return np.hypot(out[..., 0], out[..., 1])
 
-    best = np.minimum(to_square(a), to_square(b))
+    best = np.minimum(to_square(off_a), to_square(np.abs(b - centre)))
     length2 = np.maximum(d[..., 0] ** 2 + d[..., 1] ** 2, 1e-300)[..., None]
     # The four corners along a last axis at once: the same arithmetic per corner.
     rel = centre[..., None, :] + _CORNERS - a[..., None, :]
     dx, dy = d[..., None, 0], d[..., None, 1]
-    u = np.clip((rel[..., 0] * dx + rel[..., 1] * dy) / length2, 0.0, 1.0)
+    u = np.minimum(np.maximum((rel[..., 0] * dx + rel[..., 1] * dy) / length2, 0.0), 1.0)
     corners = np.hypot(rel[..., 0] - u * dx, rel[..., 1] - u * dy).min(axis=-1)
     return np.where(crosses, 0.0, np.minimum(best, corners))
 

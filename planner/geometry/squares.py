@@ -4,6 +4,8 @@ any-angle shaping tests every shortcut with."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -74,22 +76,53 @@ def _least_square_distance(
 ) -> float:
     """The least distance from the segment to the cells' squares (0 if it crosses one),
     for one segment and a few cells: the any-angle shaping calls this thousands of
-    times."""
+    times, so the per-cell arithmetic runs on plain floats (the same IEEE operations as
+    numpy's, element by element). Only the corners' projections stay numpy products
+    (`@` goes through BLAS, whose rounding plain floats would not reproduce) and the
+    distances one `np.hypot` (`math.hypot` rounds differently)."""
     centre = cells.astype(float)
     d = p1 - p0
-    entry, exit_ = _slabs(p0, d, centre)
-    if (entry <= exit_).any():
-        return 0.0  # it crosses a square
-    least = min(
-        float(_point_to_square(p0, centre).min()), float(_point_to_square(p1, centre).min())
-    )
+    x0, y0 = float(p0[0]), float(p0[1])
+    x1, y1 = float(p1[0]), float(p1[1])
+    dx, dy = float(d[0]), float(d[1])
+    squares = centre.tolist()
+    for cx, cy in squares:
+        if _crosses(x0, y0, dx, dy, cx, cy):
+            return 0.0
+    gx, gy = [], []  # the offsets whose length is a candidate distance
+    for cx, cy in squares:
+        for px, py in ((x0, y0), (x1, y1)):
+            gx.append(max(abs(px - cx) - 0.5, 0.0))
+            gy.append(max(abs(py - cy) - 0.5, 0.0))
     length2 = float(d @ d)
+    still = [0.0] * len(squares)  # a segment of no length: each corner projects on p0
     for sx in (-0.5, 0.5):
         for sy in (-0.5, 0.5):
             corner = centre + np.array([sx, sy])
-            u = np.clip((corner - p0) @ d / length2, 0, 1) if length2 > 0 else np.zeros(len(cells))
-            least = min(least, float(np.hypot(*(p0 + u[:, None] * d - corner).T).min()))
-    return least
+            along = ((corner - p0) @ d / length2).tolist() if length2 > 0 else still
+            for (cx, cy), t in zip(squares, along, strict=True):
+                u = min(max(t, 0.0), 1.0)
+                gx.append(x0 + u * dx - (cx + sx))
+                gy.append(y0 + u * dy - (cy + sy))
+    return float(np.hypot(gx, gy).min())
+
+
+def _crosses(x0: float, y0: float, dx: float, dy: float, cx: float, cy: float) -> bool:
+    """Whether the segment (x0, y0) + t·(dx, dy), t in [0, 1], meets the unit square
+    centred on (cx, cy), by slab clipping: where it enters and leaves the square's
+    stripe along each axis (a segment parallel to an axis and outside the stripe never
+    enters)."""
+    entry, exit_ = 0.0, 1.0
+    for p, dp, c in ((x0, dx, cx), (y0, dy, cy)):
+        lo, hi = c - 0.5, c + 0.5
+        if abs(dp) < 1e-15:
+            if p < lo or p > hi:
+                entry = 2.0
+            continue
+        t1, t2 = (lo - p) / dp, (hi - p) / dp
+        entry = max(entry, min(t1, t2))
+        exit_ = min(exit_, max(t1, t2))
+    return entry <= exit_
 
 
 def _cells_near(
@@ -99,39 +132,26 @@ def _cells_near(
     bounding box (widened) whose centre is within radius + √2/2 of it (no point of a
     square is further than √2/2 from its centre, so no cell that matters is dropped)."""
     reach = radius + 0.5
-    lo = np.floor(np.minimum(p0, p1) - reach).astype(int)
-    hi = np.ceil(np.maximum(p0, p1) + reach).astype(int)
-    lo = np.maximum(lo, 0)
-    hi = np.minimum(hi, np.array(blocked.shape) - 1)
-    if np.any(lo > hi):
+    x0, y0, x1, y1 = float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1])
+    lo_x = max(math.floor(min(x0, x1) - reach), 0)
+    lo_y = max(math.floor(min(y0, y1) - reach), 0)
+    hi_x = min(math.ceil(max(x0, x1) + reach), blocked.shape[0] - 1)
+    hi_y = min(math.ceil(max(y0, y1) + reach), blocked.shape[1] - 1)
+    if lo_x > hi_x or lo_y > hi_y:
         return np.empty((0, 2), dtype=np.int64)
-    window = blocked[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
-    cells: NDArray[np.int64] = np.argwhere(window) + lo
+    window = blocked[lo_x : hi_x + 1, lo_y : hi_y + 1]
+    cells: NDArray[np.int64] = np.argwhere(window) + np.array([lo_x, lo_y])
     if len(cells) > 8:
         d = p1 - p0
         length2 = float(d @ d)
         rel = cells - p0
-        u = np.clip(rel @ d / length2, 0.0, 1.0) if length2 > 0 else np.zeros(len(cells))
+        if length2 > 0:  # np.minimum/np.maximum: np.clip's value, faster on a few cells
+            u = np.minimum(np.maximum(rel @ d / length2, 0.0), 1.0)
+        else:
+            u = np.zeros(len(cells))
         gap = rel - u[:, None] * d
         cells = cells[np.einsum("ij,ij->i", gap, gap) <= (radius + SQUARE_REACH) ** 2]
     return cells
-
-
-def _slabs(
-    p0: NDArray[np.float64], d: NDArray[np.float64], centre: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Where the segment p0 + t·d (t in [0, 1]) enters and leaves each unit square
-    centred on `centre` (slab clipping): it crosses the squares where entry <= exit."""
-    entry, exit_ = np.zeros(len(centre)), np.ones(len(centre))
-    for axis in range(2):
-        lo, hi = centre[:, axis] - 0.5, centre[:, axis] + 0.5
-        if abs(d[axis]) < 1e-15:
-            entry = np.where((p0[axis] < lo) | (p0[axis] > hi), 2.0, entry)
-            continue
-        t1, t2 = (lo - p0[axis]) / d[axis], (hi - p0[axis]) / d[axis]
-        entry = np.maximum(entry, np.minimum(t1, t2))
-        exit_ = np.minimum(exit_, np.maximum(t1, t2))
-    return entry, exit_
 
 
 def _point_to_square(p: NDArray[np.float64], centre: NDArray[np.float64]) -> NDArray[np.float64]:
