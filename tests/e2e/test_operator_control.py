@@ -102,6 +102,12 @@ def test_after_a_restart_the_flight_is_interrupted_and_abort_still_works(
                     "vehicles re-attached",
                 )
                 assert live["state"] == "interrupted"
+
+                def paused() -> list[dict]:  # nobody followed them: each mission is paused
+                    got = client.get(f"/flights/{flight.id}/events", params={"limit": 10000})
+                    return [e for e in got.json() if e["kind"] == "UnfollowedPaused"]
+
+                wait_for(lambda: len(paused()) == len(flight.vehicle_ids), 30, "missions paused")
                 refused = flight.post("upload")
                 assert refused.status_code == 409, refused.text
                 _abort_lands_everyone(flight)

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
+import httpx
 import pytest
 from sqlalchemy import create_engine, func, select
 
@@ -60,10 +62,14 @@ def test_the_survivor_takes_over_a_killed_services_flight(
         a.kill()  # kill -9: no clean stop, no release
         wait_taken_over(on_b, flight.id, "b")
         assert flight.airborne(), "the vehicles landed before the takeover: slow the mock"
-        assert "AUTO" in flight.modes()  # they fly their missions on, unfollowed
         flight.client = on_b
         note = on_b.get(f"/flights/{flight.id}").json()["note"]
         assert note.startswith("taken over by service b at " + b.url + " from a:"), note
+        # Nobody keeps the passing order now: b pauses every mission still flown.
+        every = len(flight.vehicle_ids)
+        wait_for(lambda: len(_unfollowed_paused(on_b, flight.id)) == every, 30, "all paused")
+        assert all(e["ok"] for e in _unfollowed_paused(on_b, flight.id))
+        assert all(sim.state(k).holding for k in sim.sysids if sim.state(k).alt > 1.0)
 
         wait_for(
             lambda: all(
@@ -95,6 +101,11 @@ def test_the_survivor_takes_over_a_killed_services_flight(
     assert uploads == len(flight.vehicle_ids)  # each mission once: nothing uploaded again
     assert owners == {"a"}  # the plan's job was claimed and run by a alone
     assert not [p for p in b.problems() if "Traceback" in p or '" 500' in p]
+
+
+def _unfollowed_paused(client: httpx.Client, flight_id: str) -> list[dict[str, Any]]:
+    events = client.get(f"/flights/{flight_id}/events", params={"limit": 10000}).json()
+    return [e["data"] for e in events if e["kind"] == "UnfollowedPaused"]
 
 
 def test_an_abort_under_way_is_carried_on_by_the_survivor(

@@ -10,9 +10,10 @@ added from storage; each vehicle must be reachable from both, as SITL's further 
 ports or a MAVLink router allow), records a `TakenOver` event, and keeps the operator in
 control. Nothing is uploaded: the vehicles fly on the missions they have. The passing
 order was kept by the dead service's follower, which is gone; so a flight taken over in
-the air is `interrupted`, as after a restart, and watched until every vehicle is down:
-abort, hold, land and return work on it from the survivor. An `aborting` flight stays so,
-its abort sent again to every vehicle not yet down.
+the air is `interrupted`, as after a restart, each vehicle still flying its mission is
+paused as soon as its link is up (nobody keeps the order), and the flight is watched
+until every vehicle is down: abort, hold, land and return work on it from the survivor.
+An `aborting` flight stays so, its abort sent again to every vehicle not yet down.
 
 A service that finds a flight it thought its own held by another (it was frozen longer
 than a lease) lets it go at once, commanding nothing. A request for a flight that another
@@ -187,9 +188,10 @@ class FlightControl:
         if state in TAKEN_IN_THE_AIR:
             await self.flights.to_interrupted(
                 row.id,
-                f"{note}: nobody keeps the passing order now; the vehicles fly the missions "
-                "they have. Hold, land or abort them",
+                f"{note}: nobody keeps the passing order now, so the missions still flown "
+                "are paused. Land, return or abort the vehicles",
             )
+            self.operator.pause_unfollowed(row.id, row.bindings)
         fallback = _abort_of(row) if state == F.ABORTING else None
         if fallback is not None:  # the dead service may not have reached every vehicle
             self.operator.owe_abort(row.id, fallback, row.bindings.values())

@@ -8,6 +8,12 @@ a restart, or a start that failed) is commanded through the vehicles' links dire
 Per-vehicle commands go to the flight that owns the vehicle, if any, so that the fleet
 knows (an operator's hold is never lifted by the schedule keeper; a vehicle sent down or
 home leaves the plan); a vehicle that belongs to no flight is simply commanded.
+
+A flight nobody followed for a while (its service was killed, and this one restarted or
+took it over) may have vehicles still flying their missions, with nobody keeping the
+passing order. Each such vehicle's mission is paused as soon as its link is up, as a
+stopping service would have held it, unless the operator commands it first; the
+operator then lands, returns or aborts them.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-from collections.abc import Awaitable, Callable, Iterable
+from collections.abc import Awaitable, Callable, Iterable, Mapping
 from typing import Any, Literal
 
 from gcs.fleet.crew import Fallback
@@ -50,6 +56,9 @@ class OperatorCommands:
         self._owed: dict[str, tuple[Fallback, set[str]]] = {}
         """Per aborting flight: the abort's action, and the vehicles it has not reached yet
         (offline when it was sent, or it failed): sent to each as soon as it can be."""
+        self._unfollowed: dict[str, dict[str, str]] = {}
+        """Per interrupted flight: the vehicles whose missions are to be paused once
+        reachable (nobody keeps their passing order), until the operator commands them."""
 
     # --- the fleet ---------------------------------------------------------------------
 
@@ -66,6 +75,7 @@ class OperatorCommands:
                     f"flight {flight_id} is {state.value}: its vehicles are all on the ground, "
                     "so there is nothing to abort (command one with /vehicles/{id}/land)"
                 )
+            self._unfollowed.pop(flight_id, None)
             preempting = asyncio.ensure_future(slot.preempt())
             active = self.book.active.get(flight_id)
             if active is not None and active.fleet.crew.members:
@@ -101,6 +111,7 @@ class OperatorCommands:
                 if state == F.FLYING:
                     await self.book.transition(flight_id, F.PAUSED, "held by the operator")
             elif state.is_open:
+                self._unfollowed.pop(flight_id, None)
                 outcomes = await self._command_links(row, lambda a: a.hold())
             else:
                 raise StateConflict(f"flight {flight_id} is {state.value}: nothing to hold")
@@ -149,6 +160,7 @@ class OperatorCommands:
         await self.require(owner.id)  # another live service controls it: 409 naming it
         self.registry.link(vehicle_id)  # offline: 409 saying why
         uav = self.book.uav_of(owner, vehicle_id)
+        self._unfollowed.get(owner.id, {}).pop(vehicle_id, None)
         async with self.book.slot(owner.id).intervention():
             outcome = await self._in_flight(owner, uav, vehicle_id, action)
         kind = EventKind.OPERATOR_COMMAND
@@ -196,12 +208,20 @@ class OperatorCommands:
         self._owed[flight_id] = (fallback, set(vehicle_ids))
         self.watch_until_down(flight_id)
 
+    def pause_unfollowed(self, flight_id: str, bindings: Mapping[str, str]) -> None:
+        """Pause the mission of each vehicle (`bindings`: UAV to vehicle id) still flying
+        it, as soon as its link is up (the flight was not followed for a while: after a
+        restart, or taken over)."""
+        self._unfollowed[flight_id] = {vid: uav for uav, vid in bindings.items()}
+        self.watch_until_down(flight_id)
+
     def stop_watching(self, flight_id: str) -> None:
         """Another service holds the flight now: it watches it, not this one."""
         watcher = self._watchers.pop(flight_id, None)
         if watcher is not None:
             watcher.cancel()
         self._owed.pop(flight_id, None)
+        self._unfollowed.pop(flight_id, None)
 
     async def _until_down(self, flight_id: str) -> None:
         bindings = await self.book.bindings(flight_id)
@@ -211,6 +231,7 @@ class OperatorCommands:
             if not state.is_open or state not in (F.ABORTING, F.INTERRUPTED):
                 break
             await self._pay_what_is_owed(flight_id)
+            await self._pause_unfollowed(flight_id)
             if self._all_down(flight_id, bindings.values()):
                 down_since = _now() if down_since is None else down_since
                 if _now() - self._settled_since(down_since, bindings.values()) >= SETTLE_S:
@@ -224,6 +245,7 @@ class OperatorCommands:
             await asyncio.sleep(DOWN_POLL_S)
         self._watchers.pop(flight_id, None)
         self._owed.pop(flight_id, None)
+        self._unfollowed.pop(flight_id, None)
 
     async def _pay_what_is_owed(self, flight_id: str) -> None:
         """The abort to the vehicles it has not reached yet, now that they can be."""
@@ -236,6 +258,30 @@ class OperatorCommands:
                 if not link.state.down:
                     await _fallback_action(fallback)(FlightActions(link))
                 missed.discard(vehicle_id)
+
+    async def _pause_unfollowed(self, flight_id: str) -> None:
+        """Each reachable vehicle still flying its mission unfollowed: paused, once tried.
+        A pause only (DO_PAUSE_CONTINUE), never a mode change: what the vehicle does
+        otherwise (landing, going home, told so before) is left as it is, and an
+        operator's command sent meanwhile is not overridden."""
+        waiting = self._unfollowed.get(flight_id, {})
+        for vehicle_id in sorted(waiting):
+            link = self.registry.link_or_none(vehicle_id)
+            if link is None:
+                continue  # not back yet
+            uav = waiting.pop(vehicle_id)
+            if link.state.mode != "AUTO" or not link.state.armed:  # both known from HEARTBEAT
+                continue
+            try:
+                await FlightActions(link).pause()
+                ok, detail = True, "mission paused: nobody keeps the passing order"
+            except GcsError as exc:
+                ok, detail = False, f"mission not paused ({exc}): land, return or abort it"
+            log.warning("flight %s: %s: %s", flight_id, uav, detail)
+            kind = EventKind.UNFOLLOWED_PAUSED
+            message = {"type": "event", "kind": kind, "uav_id": uav, "ok": ok, "detail": detail}
+            self.book.events.record(flight_id, kind, message, uav)
+            self.book.tell(flight_id, message)
 
     def _all_down(self, flight_id: str, vehicle_ids: Iterable[str]) -> bool:
         """Every vehicle disarmed on the ground, and nothing of the flight still running
@@ -256,6 +302,8 @@ class OperatorCommands:
         several services on one database, those this one holds (`holder_id`)."""
         for row in await self.book.flights.open_flights():
             if holder_id is None or row.owner_id in (None, holder_id):
+                if FlightState(row.state) == F.INTERRUPTED:
+                    self.pause_unfollowed(row.id, row.bindings)
                 self.watch_until_down(row.id)
 
     async def close(self) -> None:
