@@ -184,12 +184,17 @@ def _ports(sitl: list[Instance]) -> list[int]:
 
 @contextmanager
 def service_flight(
-    tmp_path: Path, scenario: Scenario, speed: float | None = None, rate: float | None = None
+    tmp_path: Path,
+    scenario: Scenario,
+    speed: float | None = None,
+    rate: float | None = None,
+    service: ServiceProcess | None = None,
 ) -> Iterator[tuple[httpx.Client, str, Observer, Plan]]:
-    """Fresh instances at the UAVs' starts and the service, with a flight of `scenario`
-    planned, bound at `speed` (the product's default when None), uploaded (verified by
-    read-back) and started; SITL at speed-up `rate` (default: `speedup`)."""
-    service = ServiceProcess(tmp_path / "data")
+    """Fresh instances at the UAVs' starts and the service (`service`, if the test needs
+    its process), with a flight of `scenario` planned, bound at `speed` (the product's
+    default when None), uploaded (verified by read-back) and started; SITL at speed-up
+    `rate` (default: `speedup`)."""
+    service = service or ServiceProcess(tmp_path / "data")
     homes = homes_at_starts(scenario)
     with instances(homes, tmp_path, rate or speedup(scenario)) as sitl:
         service.start()
@@ -355,6 +360,39 @@ def test_the_operator_pauses_continues_and_lands_real_arducopter(tmp_path: Path)
     assert all(d < a for d, a in zip(drift, allowed, strict=True)), (drift, allowed)
     print(f"operator: fleet held {HELD_S} s; {uav} braked coming down ({held['detail']});"
           f" landed within {max(drift):.2f} m of where aborted (allowed {allowed})")  # fmt: skip
+
+
+def test_a_restarted_service_pauses_the_missions_nobody_followed(tmp_path: Path) -> None:
+    """The service is killed (kill -9) mid-flight, so nobody keeps the passing order;
+    restarted, it pauses every mission still flown as soon as each link is up: every
+    vehicle stops and stays stopped, by its own reports, until the operator's abort
+    (LAND) brings them down."""
+    scenario = load_case("case-6")
+    service = ServiceProcess(tmp_path / "data")
+    with service_flight(tmp_path, scenario, rate=2.0, service=service) as (
+        client, flight, observer, _,
+    ):  # fmt: skip
+        wait_for(lambda: under_way(client, flight), 600, "every vehicle on its way", every=0.2)
+        service.kill()
+        service.start()
+        with service.client() as again:
+            assert again.get(f"/flights/{flight}").json()["state"] == "interrupted"
+
+            def paused() -> list[dict[str, Any]] | None:
+                said = [e for e in all_events(again, flight) if e["kind"] == "UnfollowedPaused"]
+                return said if len(said) == len(scenario.uavs) else None
+
+            answers = wait_for(paused, 120, "every mission paused")
+            wait_for(lambda: max(observer.speeds()) < STILL_M_S, 120, "every vehicle stopped")
+            stopped = observer.latest()
+            wait_for(lambda: observer.seconds_since(stopped) > HELD_S, 300, f"{HELD_S} s held")
+            assert max(observer.moved_since(stopped)) < 0.5, observer.moved_since(stopped)
+            aborted = again.post(f"/flights/{flight}/abort", json={"mode": "land"})
+            assert aborted.status_code == 200, aborted.text
+            state = final_state(again, flight, 600)
+    assert all(a["data"]["ok"] for a in answers), answers
+    assert state["state"] == "aborted", state
+    print(f"restart: {[a['data']['detail'] for a in answers]}")
 
 
 def under_way(client: httpx.Client, flight: str) -> bool:
