@@ -9,7 +9,7 @@ processes do all of it in tests/storage/test_two_services.py."""
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from typing import Any, cast
 
 import pytest
@@ -55,12 +55,17 @@ class Operator:
         self.watched: set[str] = set()
         self.owed: dict[str, Fallback] = {}
         self.stopped: set[str] = set()
+        self.unfollowed: dict[str, dict[str, str]] = {}
 
     def watch_until_down(self, flight_id: str) -> None:
         self.watched.add(flight_id)
 
     def owe_abort(self, flight_id: str, fallback: Fallback, _ids: Iterable[str]) -> None:
         self.owed[flight_id] = fallback
+
+    def pause_unfollowed(self, flight_id: str, bindings: Mapping[str, str]) -> None:
+        self.unfollowed[flight_id] = dict(bindings)
+        self.watched.add(flight_id)
 
     def stop_watching(self, flight_id: str) -> None:
         self.stopped.add(flight_id)
@@ -126,6 +131,7 @@ async def test_a_request_is_refused_naming_the_live_holder_then_takes_over(db: D
     assert row.note.startswith("taken over by service b at http://127.0.0.1:8002 from a:")
     assert cast(Any, on_b.flights.book.events).kinds == ["TakenOver", "FlightState"]
     assert fid in cast(Operator, on_b.operator).watched
+    assert cast(Operator, on_b.operator).unfollowed == {fid: row.bindings}  # to be paused
     with pytest.raises(ControlledElsewhere, match="service b at"):
         await on_a.require(fid)
 
