@@ -264,8 +264,10 @@ class OperatorCommands:
         A pause only (DO_PAUSE_CONTINUE), never a mode change: what the vehicle does
         otherwise (landing, going home, told so before) is left as it is, and an
         operator's command sent meanwhile is not overridden."""
-        waiting = self._unfollowed.get(flight_id, {})
-        for vehicle_id in sorted(waiting):
+        for vehicle_id in sorted(self._unfollowed.get(flight_id, {})):
+            waiting = self._unfollowed.get(flight_id, {})  # afresh after each pause:
+            if vehicle_id not in waiting:  # the operator's command, or abort, came first
+                continue
             link = self.registry.link_or_none(vehicle_id)
             if link is None:
                 continue  # not back yet
