@@ -75,7 +75,7 @@ class OperatorCommands:
                     f"flight {flight_id} is {state.value}: its vehicles are all on the ground, "
                     "so there is nothing to abort (command one with /vehicles/{id}/land)"
                 )
-            self._unfollowed.pop(flight_id, None)
+            self.operator_took(flight_id)
             preempting = asyncio.ensure_future(slot.preempt())
             active = self.book.active.get(flight_id)
             if active is not None and active.fleet.crew.members:
@@ -111,7 +111,7 @@ class OperatorCommands:
                 if state == F.FLYING:
                     await self.book.transition(flight_id, F.PAUSED, "held by the operator")
             elif state.is_open:
-                self._unfollowed.pop(flight_id, None)
+                self.operator_took(flight_id)
                 outcomes = await self._command_links(row, lambda a: a.hold())
             else:
                 raise StateConflict(f"flight {flight_id} is {state.value}: nothing to hold")
@@ -160,7 +160,7 @@ class OperatorCommands:
         await self.require(owner.id)  # another live service controls it: 409 naming it
         self.registry.link(vehicle_id)  # offline: 409 saying why
         uav = self.book.uav_of(owner, vehicle_id)
-        self._unfollowed.get(owner.id, {}).pop(vehicle_id, None)
+        self.operator_took(owner.id, vehicle_id)
         async with self.book.slot(owner.id).intervention():
             outcome = await self._in_flight(owner, uav, vehicle_id, action)
         kind = EventKind.OPERATOR_COMMAND
@@ -214,6 +214,14 @@ class OperatorCommands:
         restart, or taken over)."""
         self._unfollowed[flight_id] = {vid: uav for uav, vid in bindings.items()}
         self.watch_until_down(flight_id)
+
+    def operator_took(self, flight_id: str, vehicle_id: str | None = None) -> None:
+        """The operator commands the flight's vehicles (or one): none of them (or not that
+        one) is paused for being unfollowed from now on."""
+        if vehicle_id is None:
+            self._unfollowed.pop(flight_id, None)
+        else:
+            self._unfollowed.get(flight_id, {}).pop(vehicle_id, None)
 
     def stop_watching(self, flight_id: str) -> None:
         """Another service holds the flight now: it watches it, not this one."""
