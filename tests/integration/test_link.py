@@ -19,10 +19,10 @@ from .udp_relay import UdpRelay
 
 @pytest.mark.parametrize(("autopilot", "transport"), [("ardupilot", "udp"), ("px4", "tcp")])
 async def test_link_learns_the_vehicle_and_asks_for_its_telemetry(
-    simulator, links, autopilot: str, transport: str
+    socket_simulator, socket_links, autopilot: str, transport: str
 ) -> None:
-    sim = simulator([vehicle(7, autopilot, transport)])
-    link = await links(sim, 7)
+    sim = socket_simulator([vehicle(7, autopilot, transport)])
+    link = await socket_links(sim, 7)
     assert (link.sysid, link.compid) == (7, 1)
     assert link.autopilot == {"ardupilot": Autopilot.ARDUPILOT, "px4": Autopilot.PX4}[autopilot]
     # real ArduPilot streams nothing until asked: a position proves the request worked
@@ -35,32 +35,34 @@ async def test_link_learns_the_vehicle_and_asks_for_its_telemetry(
     assert state.mode == sim.state(7).mode
 
 
-async def test_waiting_is_bounded(simulator, links) -> None:
-    sim = simulator([vehicle(1)])
-    link = await links(sim, 1)
+async def test_waiting_is_bounded(socket_simulator, socket_links) -> None:
+    sim = socket_simulator([vehicle(1)])
+    link = await socket_links(sim, 1)
     with pytest.raises(WaitTimeoutError, match="DEBUG_VECT"):
         await link.wait_for("DEBUG_VECT", timeout=0.2)
 
 
-async def test_connect_gives_up_when_no_autopilot_answers(simulator) -> None:
-    sim = simulator([vehicle(1)])
+async def test_connect_gives_up_when_no_autopilot_answers(socket_simulator) -> None:
+    sim = socket_simulator([vehicle(1)])
     settings = LinkSettings(connect_timeout_s=0.3)
     with pytest.raises(ConnectTimeoutError, match="autopilot 9"):
         await client.connect(sim.connection_string(1), sysid=9, settings=settings)
 
 
-async def test_link_goes_down_on_silence_and_comes_back_with_its_streams(simulator, links):
-    sim = simulator([vehicle(1)], speedup=20.0)
-    link = await links(sim, 1)
+async def test_link_goes_down_on_silence_and_comes_back_with_its_streams(
+    socket_simulator, socket_links
+):
+    sim = socket_simulator([vehicle(1)], speedup=20.0)
+    link = await socket_links(sim, 1)
     sim.silence(1, seconds=40.0)  # 2 s of wall time at 20x, link timeout 1 s
     await _until(lambda: not link.state.link_up, 2.0)
     await _until(lambda: link.state.link_up, 4.0)
     await link.wait_for("GLOBAL_POSITION_INT", timeout=2.0)
 
 
-async def test_a_reboot_is_detected(simulator, links) -> None:
-    sim = simulator([vehicle(1)], speedup=20.0)
-    link = await links(sim, 1)
+async def test_a_reboot_is_detected(socket_simulator, socket_links) -> None:
+    sim = socket_simulator([vehicle(1)], speedup=20.0)
+    link = await socket_links(sim, 1)
     await MissionClient(link).upload(square_mission(link.autopilot))
     await _until(lambda: link.heartbeat_period_s is not None, 10.0)  # it knows the rate
     sim.reboot(1)
@@ -70,9 +72,9 @@ async def test_a_reboot_is_detected(simulator, links) -> None:
     await link.wait_for("GLOBAL_POSITION_INT", timeout=3.0)  # streams asked for again
 
 
-async def test_several_vehicles_on_one_port_are_told_apart_by_sysid(simulator) -> None:
+async def test_several_vehicles_on_one_port_are_told_apart_by_sysid(socket_simulator) -> None:
     """Failure mode 10: one radio, two vehicles; each link sees only its own system id."""
-    sim = simulator([vehicle(1, "ardupilot"), vehicle(2, "px4")])
+    sim = socket_simulator([vehicle(1, "ardupilot"), vehicle(2, "px4")])
     async with UdpRelay([sim.port(1), sim.port(2)]) as relay:
         connection = await MavConnection.open(f"udpout:127.0.0.1:{relay.port}")
         try:

@@ -51,9 +51,11 @@ async def received_by_spoofer(sock: socket.socket, seconds: float) -> int:
     return count
 
 
-async def test_a_udpout_link_ignores_and_counts_a_spoofer(simulator, links, spoofer) -> None:
-    sim = simulator([vehicle(1)])
-    link = await links(sim, 1)
+async def test_a_udpout_link_ignores_and_counts_a_spoofer(
+    socket_simulator, socket_links, spoofer
+) -> None:
+    sim = socket_simulator([vehicle(1)])
+    link = await socket_links(sim, 1)
     await _until(lambda: link.state.position is not None, 30.0)
     mode_before = link.state.mode
     for _ in range(5):
@@ -65,23 +67,23 @@ async def test_a_udpout_link_ignores_and_counts_a_spoofer(simulator, links, spoo
     assert await received_by_spoofer(spoofer, 0.5) == 0
 
 
-async def test_a_udpout_socket_binds_loopback(simulator, links) -> None:
-    sim = simulator([vehicle(1)])
-    link = await links(sim, 1)
+async def test_a_udpout_socket_binds_loopback(socket_simulator, socket_links) -> None:
+    sim = socket_simulator([vehicle(1)])
+    link = await socket_links(sim, 1)
     transport = link.connection._transport
     host = transport._transport.get_extra_info("sockname")[0]
     assert host == "127.0.0.1"
 
 
 async def test_a_listening_link_keeps_the_address_that_proved_to_be_the_vehicle(
-    simulator, spoofer
+    socket_simulator, spoofer
 ) -> None:
     listen = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     listen.bind(("127.0.0.1", 0))
     port = listen.getsockname()[1]
     listen.close()
     config = VehicleConfig(sysid=1, home=CMAC, transport="tcp", outputs=(f"udp:127.0.0.1:{port}",))
-    sim = simulator([config])
+    sim = socket_simulator([config])
     link = await client.connect(f"udpin:127.0.0.1:{port}", settings=FAST_LINK)
     try:
         await _until(lambda: link.state.position is not None, 30.0)
@@ -95,8 +97,8 @@ async def test_a_listening_link_keeps_the_address_that_proved_to_be_the_vehicle(
         await link.close()
 
 
-async def test_a_signing_vehicle_takes_commands_only_from_a_signing_link(simulator) -> None:
-    sim = simulator([VehicleConfig(sysid=1, home=CMAC, signing_key=KEY)])
+async def test_a_signing_vehicle_takes_commands_only_from_a_signing_link(socket_simulator) -> None:
+    sim = socket_simulator([VehicleConfig(sysid=1, home=CMAC, signing_key=KEY)])
     url = sim.connection_string(1)
     settings = LinkSettings(connect_timeout_s=5.0, link_timeout_s=4.0, request_streams=False)
     unsigned = await client.connect(url, settings=settings)  # it hears the vehicle's beats
@@ -114,8 +116,8 @@ async def test_a_signing_vehicle_takes_commands_only_from_a_signing_link(simulat
         await signed.close()
 
 
-async def test_a_signing_link_ignores_unsigned_telemetry(simulator, spoofer) -> None:
-    sim = simulator([VehicleConfig(sysid=1, home=CMAC, signing_key=KEY, transport="udp")])
+async def test_a_signing_link_ignores_unsigned_telemetry(socket_simulator, spoofer) -> None:
+    sim = socket_simulator([VehicleConfig(sysid=1, home=CMAC, signing_key=KEY, transport="udp")])
     settings = LinkSettings(connect_timeout_s=5.0, link_timeout_s=4.0)
     link = await client.connect(sim.connection_string(1), settings=settings, signing=Signing(KEY))
     try:

@@ -7,12 +7,10 @@ transfers over real sockets are the conformance tests'."""
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import replace
 
 import pytest
 
-from gcs.mavlink import client
 from gcs.mavlink.errors import (
     GcsError,
     LinkLostError,
@@ -23,48 +21,15 @@ from gcs.mavlink.errors import (
     MissionTimeoutError,
     NoSpaceError,
 )
-from gcs.mavlink.link import LinkSettings, VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Command, Mission, MissionItem
 from gcs.mavlink.mission_protocol import MissionClient, TransferPolicy, first_mismatch
 from gcs.mavlink.vehicle_state import MAV_STATE_BOOT
-from sitl_mock import Faults, Simulator, VehicleConfig
-from tests.inprocess.vehicles import SimulatedVehicles
+from sitl_mock import Faults, VehicleConfig
 
 from .conftest import CMAC, FAST_LINK, square_mission, vehicle
 
 pytestmark = [pytest.mark.virtual_clock]
 BOTH = ["ardupilot", "px4"]
-Start = Callable[..., Awaitable[Simulator]]
-Connect = Callable[..., Awaitable[VehicleLink]]
-
-
-@pytest.fixture
-def simulator(vehicles: SimulatedVehicles) -> Start:
-    """Simulated vehicles in memory (in place of the package's simulators on sockets)."""
-
-    async def start(configs: list[VehicleConfig], seed: int = 0) -> Simulator:
-        return await vehicles.start([replace(c, transport="memory") for c in configs], seed)
-
-    return start
-
-
-@pytest.fixture
-async def links(vehicles: SimulatedVehicles) -> AsyncIterator[Connect]:
-    """Links to them over in-memory ports; all closed when the test ends."""
-    opened: list[VehicleLink] = []
-
-    async def connect(
-        sim: Simulator, sysid: int, settings: LinkSettings = FAST_LINK
-    ) -> VehicleLink:
-        link = await client.connect(
-            sim.connection_string(sysid), settings=settings, opener=vehicles.open
-        )
-        opened.append(link)
-        return link
-
-    yield connect
-    for link in opened:
-        await link.close()
 
 
 def sent_types(link) -> list[str]:
