@@ -1,4 +1,8 @@
-"""The link against simulated vehicles: identity, streams, link loss, reboot, shared ports."""
+"""The link against simulated vehicles: identity, streams, link loss, reboot, shared ports.
+
+What the link makes of the vehicle's packets and silences runs on the virtual clock, the
+vehicles in memory (tests marked `virtual_clock`); the transports themselves (UDP, TCP,
+one UDP port shared by two vehicles) on loopback sockets, in wall-clock time."""
 
 from __future__ import annotations
 
@@ -12,6 +16,7 @@ from gcs.mavlink.errors import ConnectTimeoutError, WaitTimeoutError
 from gcs.mavlink.link import LinkSettings
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.mission_protocol import MissionClient
+from tests.inprocess.vehicles import SimulatedVehicles
 
 from .conftest import FAST_LINK, square_mission, vehicle
 from .udp_relay import UdpRelay
@@ -35,34 +40,40 @@ async def test_link_learns_the_vehicle_and_asks_for_its_telemetry(
     assert state.mode == sim.state(7).mode
 
 
-async def test_waiting_is_bounded(socket_simulator, socket_links) -> None:
-    sim = socket_simulator([vehicle(1)])
-    link = await socket_links(sim, 1)
+@pytest.mark.virtual_clock
+async def test_waiting_is_bounded(simulator, links) -> None:
+    sim = await simulator([vehicle(1)])
+    link = await links(sim, 1)
     with pytest.raises(WaitTimeoutError, match="DEBUG_VECT"):
         await link.wait_for("DEBUG_VECT", timeout=0.2)
 
 
-async def test_connect_gives_up_when_no_autopilot_answers(socket_simulator) -> None:
-    sim = socket_simulator([vehicle(1)])
+@pytest.mark.virtual_clock
+async def test_connect_gives_up_when_no_autopilot_answers(
+    simulator, vehicles: SimulatedVehicles
+) -> None:
+    sim = await simulator([vehicle(1)])
     settings = LinkSettings(connect_timeout_s=0.3)
     with pytest.raises(ConnectTimeoutError, match="autopilot 9"):
-        await client.connect(sim.connection_string(1), sysid=9, settings=settings)
+        await client.connect(
+            sim.connection_string(1), sysid=9, settings=settings, opener=vehicles.open
+        )
 
 
-async def test_link_goes_down_on_silence_and_comes_back_with_its_streams(
-    socket_simulator, socket_links
-):
-    sim = socket_simulator([vehicle(1)], speedup=20.0)
-    link = await socket_links(sim, 1)
-    sim.silence(1, seconds=40.0)  # 2 s of wall time at 20x, link timeout 1 s
+@pytest.mark.virtual_clock
+async def test_link_goes_down_on_silence_and_comes_back_with_its_streams(simulator, links):
+    sim = await simulator([vehicle(1)])
+    link = await links(sim, 1)
+    sim.silence(1, seconds=2.0)  # twice the link timeout (1 s)
     await _until(lambda: not link.state.link_up, 2.0)
     await _until(lambda: link.state.link_up, 4.0)
     await link.wait_for("GLOBAL_POSITION_INT", timeout=2.0)
 
 
-async def test_a_reboot_is_detected(socket_simulator, socket_links) -> None:
-    sim = socket_simulator([vehicle(1)], speedup=20.0)
-    link = await socket_links(sim, 1)
+@pytest.mark.virtual_clock
+async def test_a_reboot_is_detected(simulator, links) -> None:
+    sim = await simulator([vehicle(1)])
+    link = await links(sim, 1)
     await MissionClient(link).upload(square_mission(link.autopilot))
     await _until(lambda: link.heartbeat_period_s is not None, 10.0)  # it knows the rate
     sim.reboot(1)

@@ -2,6 +2,8 @@
 
 A spoofer is a plain UDP socket on another local port that sends well-formed MAVLink
 claiming to be the vehicle: a HEARTBEAT in GUIDED and a GLOBAL_POSITION_INT in London.
+A signing vehicle's refusal of unsigned commands is no matter of sockets: it runs on the
+virtual clock, the vehicle in memory, so its command timeouts are not waited for.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from gcs.mavlink.errors import CommandTimeoutError
 from gcs.mavlink.link import LinkSettings, VehicleLink
 from sitl_mock import VehicleConfig
 from tests.impostor import forged
+from tests.inprocess.vehicles import SimulatedVehicles
 
 from .conftest import CMAC, FAST_LINK, vehicle
 
@@ -97,18 +100,21 @@ async def test_a_listening_link_keeps_the_address_that_proved_to_be_the_vehicle(
         await link.close()
 
 
-async def test_a_signing_vehicle_takes_commands_only_from_a_signing_link(socket_simulator) -> None:
-    sim = socket_simulator([VehicleConfig(sysid=1, home=CMAC, signing_key=KEY)])
-    url = sim.connection_string(1)
+@pytest.mark.virtual_clock
+async def test_a_signing_vehicle_takes_commands_only_from_a_signing_link(
+    simulator, vehicles: SimulatedVehicles
+) -> None:
+    sim = await simulator([VehicleConfig(sysid=1, home=CMAC, signing_key=KEY)])
+    url, opener = sim.connection_string(1), vehicles.open
     settings = LinkSettings(connect_timeout_s=5.0, link_timeout_s=4.0, request_streams=False)
-    unsigned = await client.connect(url, settings=settings)  # it hears the vehicle's beats
+    unsigned = await client.connect(url, settings=settings, opener=opener)  # it hears the beats
     try:
         with pytest.raises(CommandTimeoutError):  # but the vehicle ignores what it says
             await FlightActions(unsigned).set_mode("LOITER")
         assert sim.rejected_packets(1) > 0
     finally:
         await unsigned.close()
-    signed = await client.connect(url, settings=settings, signing=Signing(KEY))
+    signed = await client.connect(url, settings=settings, signing=Signing(KEY), opener=opener)
     try:
         await FlightActions(signed).set_mode("LOITER")
         assert sim.state(1).mode == "LOITER"
