@@ -5,10 +5,11 @@ start, leaves its take-off item (`launch`). During the flight (`follower`) the p
 passing order is kept: a vehicle that would come too close to another before that one
 has passed is stopped in time and let go when it has (`gatekeeper`); the operator can
 hold, continue, withdraw one vehicle or abort the whole fleet at any moment
-(`interventions`), and an operator's hold is lifted by nobody else. Every per-vehicle
-answer is a `VehicleOutcome`; everything that happens is also an event. `close()`
-releases what the flight registered on its links, so a finished flight leaves nothing
-behind.
+(`interventions`), and an operator's hold is lifted by nobody else. A flight nobody
+followed for a while is taken up again where its vehicles are (`resumption`). Every
+per-vehicle answer is a `VehicleOutcome`; everything that happens is also an event.
+`close()` releases what the flight registered on its links, so a finished flight leaves
+nothing behind.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Callable
 
-from gcs.fleet import interventions, launch
+from gcs.fleet import interventions, launch, resumption
 from gcs.fleet.crew import Crew, Fallback, FleetSettings
 from gcs.fleet.events import EventBus, FleetEvent, Listener, Uploaded, VehicleFailed
 from gcs.fleet.follower import FlightReport, Follower
@@ -132,6 +133,12 @@ class Fleet:
 
     async def start(self) -> dict[str, VehicleOutcome[None]]:
         return await launch.start(self.crew)
+
+    async def resume(self) -> dict[str, VehicleOutcome[str]]:
+        """Take up a flight its vehicles are already flying (nobody followed it for a
+        while): each found where it is and stopped, to be let go in the passing order by
+        `follow` (`resumption`)."""
+        return await resumption.resume(self.crew)
 
     async def follow(self, timeout_s: float | None = None) -> FlightReport:
         if not self.crew.started:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
@@ -127,6 +128,12 @@ class GateCommander:
         if gate == Gate.GO and self._slowed.get(uav_id) is not None:
             self.applied[uav_id] = Gate.CREEP  # so that `_bring` restores the speed
             self.want(uav_id, Gate.GO)
+
+    def found_stopped(self, uav_id: str) -> None:
+        """The vehicle was stopped by others (a flight followed again): at STOP, and its
+        speed not known, so that the first change gives it its mission's speed again."""
+        self.applied[uav_id] = self._wanted[uav_id] = Gate.STOP
+        self._slowed[uav_id] = math.nan  # equal to no speed: always commanded afresh
 
     async def _bring(self, uav_id: str) -> None:
         while self.applied[uav_id] != self._wanted[uav_id]:

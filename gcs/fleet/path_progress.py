@@ -56,8 +56,23 @@ class PathProgress:
             reach += 2.0 * max(speed, self.speed) * elapsed
         self._time_ms = position.time_boot_ms
         self.speed = speed
-        self.s = max(self.s, self._project(here, reach))
+        self.s = max(self.s, self._project(here, self.s - BACKWARDS_M, self.s + reach))
         return True
+
+    def find(self, state: VehicleState, lo_m: float, hi_m: float) -> None:
+        """Place a vehicle found on its way (a flight followed again after a restart or a
+        takeover): its position projected onto the path between `lo_m` and `hi_m`, the
+        places of the last item it passed and of the one it flies to (a path that comes
+        back near itself must not place it on the wrong pass)."""
+        self.s = lo_m
+        position = state.position
+        if position is None:
+            return
+        x, y = self._frame.to_cells(position.lat, position.lon)
+        here = np.array([float(x), float(y)]) * self._frame.cell_size_m
+        self.s = max(lo_m, self._project(here, lo_m - BACKWARDS_M, hi_m + LOOK_AHEAD_M))
+        self.speed = float(np.hypot(*state.velocity_n_e_m_s))
+        self._time_ms = position.time_boot_ms
 
     def restart(self, path: PlannedPath) -> None:
         """A path from here on (a live replan): distances count again from its start."""
@@ -68,10 +83,9 @@ class PathProgress:
         self._len2 = np.maximum(np.einsum("ij,ij->i", self._d, self._d), 1e-12)
         self.s = 0.0
 
-    def _project(self, here: np.ndarray, reach: float) -> float:
-        """The distance along the path of the point nearest `here`, from a little behind
-        the last place to `reach` beyond it."""
-        lo, hi = self.s - BACKWARDS_M, self.s + reach
+    def _project(self, here: np.ndarray, lo: float, hi: float) -> float:
+        """The distance along the path of the point nearest `here`, between `lo` and `hi`
+        metres along it (the last place if none is)."""
         legs = np.flatnonzero((self._s[1:] >= lo) & (self._s[:-1] <= hi))
         if len(legs) == 0:
             return self.s

@@ -72,6 +72,21 @@ class RouteTracker:
     def start(self, time_boot_ms: int) -> None:
         self.start_boot_ms = time_boot_ms
 
+    def find(self, state: VehicleState) -> None:
+        """Follow a vehicle found on its way (after a restart or a takeover): the items
+        before its current one are passed, at their planned times, and its plan clock is
+        set to where its position is on the plan (its lag so far is not known: 0)."""
+        self.start_boot_ms = state.time_boot_ms
+        self.newly_passed(state)
+        self._passed_at = {k: self.visits[k].arrive for k in self._passed_at}
+        self.start_boot_ms -= round(1000 * self.plan_time(state))
+
+    def places(self, state: VehicleState) -> tuple[Visit | None, Visit | None]:
+        """The last item passed and the one flown to, by the vehicle's current item."""
+        passed = [v for v in self.visits if v.seq < state.mission_seq]
+        ahead = [v for v in self.visits if v.seq >= state.mission_seq]
+        return (passed[-1] if passed else None), (ahead[0] if ahead else None)
+
     def clock(self, state: VehicleState) -> float:
         if self.start_boot_ms is None:
             return 0.0

@@ -245,6 +245,11 @@ class FlightActions:
             self._braked_in_mission = True
             return f"{braked} (the mission would not pause: {refused.statustext or refused})"
 
+    def found_stopped_out_of_mission(self) -> None:
+        """The vehicle was stopped out of AUTO by others (a service gone, which held it
+        as it stopped): only AUTO again resumes its mission."""
+        self._braked_in_mission = True
+
     async def resume_mission(self) -> None:
         """Undo `pause_mission`: continue the paused mission, or AUTO after a brake."""
         if self._braked_in_mission:

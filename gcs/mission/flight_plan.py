@@ -226,7 +226,7 @@ def stopping_points(mission: Mission, path: PlannedPath, frame: GridFrame) -> Fl
     for item, following in itertools.pairwise(items):
         if item.command == Command.NAV_WAYPOINT and following.command in STOPPING_NEXT:
             x, y = frame.to_cells(item.lat, item.lon)
-            stops.append(_along(path, np.array([float(x), float(y)]) * frame.cell_size_m))
+            stops.append(along_path(path, np.array([float(x), float(y)]) * frame.cell_size_m))
     return np.array(stops)
 
 
@@ -242,7 +242,7 @@ def timed_visits(mission: Mission, timed: TimedPath, frame: GridFrame) -> list[V
         if item.command not in (Command.NAV_WAYPOINT, Command.NAV_LAND):
             continue
         x, y = frame.to_cells(item.lat, item.lon)
-        s = _along(timed.path, np.array([float(x), float(y)]) * frame.cell_size_m)
+        s = along_path(timed.path, np.array([float(x), float(y)]) * frame.cell_size_m)
         at = timed.time_at(s)
         lands = item.command == Command.NAV_LAND
         visits.append(Visit(seq, at, at, item.lat, item.lon, lands))
@@ -251,8 +251,9 @@ def timed_visits(mission: Mission, timed: TimedPath, frame: GridFrame) -> list[V
     return visits
 
 
-def _along(path: PlannedPath, point: Floats) -> float:
-    """The distance along `path` of its point nearest `point` (a mission's waypoint)."""
+def along_path(path: PlannedPath, point: Floats) -> float:
+    """The distance along `path` of its point nearest `point` (a mission's waypoint, in
+    metres from the grid's origin)."""
     a, d = path.xy[:-1], np.diff(path.xy, axis=0)
     if len(d) == 0:
         return 0.0

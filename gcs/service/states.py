@@ -29,7 +29,7 @@ class FlightState(StrEnum):
     PAUSED = "paused"  # held by the operator
     ABORTING = "aborting"  # told to return or land; open until all are down
     INTERRUPTED = "interrupted"  # the flight cannot go on by itself (start failed, time
-    # bound, service restart); vehicles may be up: the operator decides
+    # bound, service restart); vehicles may be up: the operator decides (resume: flying)
     LANDED = "landed"  # every vehicle flew its mission and is down
     ABORTED = "aborted"  # aborted, and every vehicle is down
     ENDED = "ended"  # ended otherwise (a vehicle withdrawn, interrupted), all down
@@ -62,7 +62,7 @@ FLIGHT_TRANSITIONS: dict[FlightState, frozenset[FlightState]] = {
     F.FLYING: frozenset({F.PAUSED, F.ABORTING, F.INTERRUPTED, F.LANDED, F.ENDED}),
     F.PAUSED: frozenset({F.FLYING, F.ABORTING, F.INTERRUPTED, F.LANDED, F.ENDED}),
     F.ABORTING: frozenset({F.ABORTED, F.INTERRUPTED}),
-    F.INTERRUPTED: frozenset({F.ABORTING, F.ENDED}),
+    F.INTERRUPTED: frozenset({F.FLYING, F.ABORTING, F.ENDED}),
     F.LANDED: frozenset(),
     F.ABORTED: frozenset(),
     F.ENDED: frozenset(),

@@ -12,7 +12,8 @@ control. Nothing is uploaded: the vehicles fly on the missions they have. The pa
 order was kept by the dead service's follower, which is gone; so a flight taken over in
 the air is `interrupted`, as after a restart, each vehicle still flying its mission is
 paused as soon as its link is up (nobody keeps the order), and the flight is watched
-until every vehicle is down: abort, hold, land and return work on it from the survivor.
+until every vehicle is down: resume, abort, hold, land and return work on it from the
+survivor.
 An `aborting` flight stays so, its abort sent again to every vehicle not yet down.
 
 A service that finds a flight it thought its own held by another (it was frozen longer
@@ -189,7 +190,7 @@ class FlightControl:
             await self.flights.to_interrupted(
                 row.id,
                 f"{note}: nobody keeps the passing order now, so the missions still flown "
-                "are paused. Land, return or abort the vehicles",
+                "are paused. Resume the flight, or land, return or abort the vehicles",
             )
             self.operator.pause_unfollowed(row.id, row.bindings)
         fallback = _abort_of(row) if state == F.ABORTING else None

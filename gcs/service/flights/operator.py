@@ -13,7 +13,8 @@ A flight nobody followed for a while (its service was killed, and this one resta
 took it over) may have vehicles still flying their missions, with nobody keeping the
 passing order. Each such vehicle's mission is paused as soon as its link is up, as a
 stopping service would have held it, unless the operator commands it first; the
-operator then lands, returns or aborts them.
+operator then resumes the flight (followed again from where its vehicles are), or lands,
+returns or aborts them.
 """
 
 from __future__ import annotations
@@ -146,6 +147,25 @@ class OperatorCommands:
             if state == F.PAUSED:
                 await self.book.transition(flight_id, F.FLYING, "continued by the operator")
             return _answers(row, outcomes, asked)
+
+    async def resume(self, flight_id: str) -> list[VehicleAnswer]:
+        """Follow an interrupted flight again from where its vehicles are
+        (`FlightService.resume`). The watch until every vehicle is down, and its pauses
+        of the vehicles nobody followed, stop first (none may land after the follower's
+        go); both carry on if the flight does not resume."""
+        pending = dict(self._unfollowed.get(flight_id, {}))
+        watcher = self._watchers.pop(flight_id, None)
+        if watcher is not None:
+            watcher.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await watcher
+        try:
+            return await self.flights.resume(flight_id)
+        finally:
+            if await self.book.state(flight_id) == F.INTERRUPTED:
+                if pending:
+                    self._unfollowed[flight_id] = pending
+                self.watch_until_down(flight_id)
 
     # --- one vehicle --------------------------------------------------------------------
 

@@ -26,6 +26,7 @@ from gcs.fleet.vehicle_limits import read_limits
 from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot
+from gcs.mavlink.mission_protocol import MissionClient, first_mismatch
 from gcs.mission.fence import FencePlan, fence_of
 from gcs.mission.files import plan_document
 from gcs.mission.flight_plan import FlightPlan, flight_plan
@@ -237,11 +238,23 @@ class FlightService:
                 await self._start_failed(active, failed)
                 return
             await self.book.transition(fid, F.FLYING)
-            report = await fleet.follow()
         except asyncio.CancelledError:
             raise  # pre-empted by the operator, who has set the state
         except Exception as exc:  # a bug must leave the flight in the operator's hands
             log.exception("flight %s: the runner failed", fid)
+            await self.to_interrupted(fid, f"the ground station failed: {exc!r}")
+            return
+        await self._follow(active)
+
+    async def _follow(self, active: ActiveFlight) -> None:
+        """Follow the flight to its end; the flight's state says how it went."""
+        fid = active.flight_id
+        try:
+            report = await active.fleet.follow()
+        except asyncio.CancelledError:
+            raise  # pre-empted by the operator, who has set the state
+        except Exception as exc:  # a bug must leave the flight in the operator's hands
+            log.exception("flight %s: following it failed", fid)
             await self.to_interrupted(fid, f"the ground station failed: {exc!r}")
             return
         if report.outcome == FlightOutcome.LANDED:
@@ -251,6 +264,38 @@ class FlightService:
         elif report.outcome == FlightOutcome.TIMEOUT:
             await self.to_interrupted(fid, "the flight exceeded its time bound")
         await self.retire_when_down(fid)
+
+    # --- following an interrupted flight again -------------------------------------------
+
+    async def resume(self, flight_id: str) -> list[VehicleAnswer]:
+        """Follow an interrupted flight again (after a restart or a takeover) from where
+        its vehicles are: each still in the plan is stopped, then let go in the passing
+        order; the flight is `flying` again. Refused (409), with nothing commanded, while
+        a vehicle is not heard or flies another mission than this flight's."""
+        slot = self.book.slot(flight_id)
+        async with slot.serial():
+            row = await self.book.row(flight_id)
+            if FlightState(row.state) != F.INTERRUPTED:
+                raise StateConflict(
+                    f"flight {flight_id} is {row.state}: only an interrupted flight resumes"
+                )
+            plan, scenario = await self._flyable(row)
+            fence = await self._fence_of(row)
+            await self.attach_vehicles(row.bindings.values())
+            links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
+            _refuse_unresumable(row, links)
+            flight = await _flight_for(plan, scenario, links, row.options)
+            await _refuse_other_missions(row, links, flight)
+            active = self._activate(row, links, flight, fence)
+            outcomes = await active.fleet.resume()
+            if not all(o.ok for o in outcomes.values()):
+                self.book.forget(flight_id)
+                active.fleet.close()
+                return self._answers(active, outcomes)  # still interrupted; those stopped stay
+            stopped = ", ".join(f"{uav}: {o.detail}" for uav, o in sorted(outcomes.items()))
+            await self.book.transition(flight_id, F.FLYING, f"resumed; stopped first: {stopped}")
+            slot.start_runner(self._follow(active))
+            return self._answers(active, outcomes)
 
     async def _start_failed(self, active: ActiveFlight, failed: dict[str, str]) -> None:
         why = "; ".join(f"{uav}: {detail}" for uav, detail in sorted(failed.items()))
@@ -480,6 +525,31 @@ async def _hold_airborne(active: ActiveFlight) -> list[str]:
     members = active.fleet.crew.members
     held = await asyncio.gather(*(hold(uav, m.link) for uav, m in sorted(members.items())))
     return [uav for uav in held if uav is not None]
+
+
+def _refuse_unresumable(row: FlightRow, links: dict[str, VehicleLink]) -> None:
+    """A flight resumes only with a vehicle in the air (`registry.link` has refused one
+    not heard)."""
+    if not any(link.state.airborne for link in links.values()):
+        raise StateConflict(f"flight {row.id}: every vehicle is on the ground: nothing resumes")
+
+
+async def _refuse_other_missions(
+    row: FlightRow, links: dict[str, VehicleLink], flight: FlightPlan
+) -> None:
+    """Each vehicle in the air must still hold this flight's mission, as built again from
+    its plan (not one uploaded since, by a live replan or another ground station)."""
+    for uav, link in sorted(links.items()):
+        if not link.state.airborne:
+            continue
+        held = await MissionClient(link).download()
+        seq = first_mismatch(flight.missions[uav], held)
+        if seq is not None:
+            raise StateConflict(
+                f"flight {row.id}: vehicle {row.bindings[uav]} ({uav}) holds another mission "
+                f"than this flight's (item {seq} differs; replanned live, or uploaded by "
+                "another ground station): it cannot be resumed; land, return or abort it"
+            )
 
 
 def _refuse_airborne(row: FlightRow, links: dict[str, VehicleLink]) -> None:

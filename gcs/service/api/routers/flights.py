@@ -77,6 +77,7 @@ FLIGHT_OPERATIONS = (
     "startFlight",
     "pauseFlight",
     "continueFlight",
+    "resumeFlight",
     "abortFlight",
     "cancelFlight",
     "reportObject",
@@ -301,6 +302,15 @@ async def continue_flight(
 ) -> FlightAction:
     """Lift the operator's hold on every vehicle of a paused (or flying) flight."""
     return await _action(flights, flight_id, await operator.continue_(flight_id))
+
+
+@router.post("/{flight_id}/resume", operation_id="resumeFlight", **_controlled(ANSWERS))
+async def resume(flight_id: str, flights: FlightsDep, operator: OperatorDep) -> FlightAction:
+    """Follow an interrupted flight again (its service restarted, or another took it
+    over): each vehicle still in the plan is stopped where it is, then let go in the
+    passing order, and the flight is `flying` again. Refused (409) while a vehicle is not
+    heard or holds another mission than this flight's (a live replan)."""
+    return await _action(flights, flight_id, await operator.resume(flight_id))
 
 
 @router.post("/{flight_id}/abort", operation_id="abortFlight", **_controlled(ANSWERS))

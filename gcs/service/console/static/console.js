@@ -869,6 +869,7 @@ function wire() {
   $("cancel-flight-btn").addEventListener("click", () => fleetCommand("cancel"));
   $("pause-btn").addEventListener("click", () => fleetCommand("pause"));
   $("continue-btn").addEventListener("click", () => fleetCommand("continue"));
+  $("resume-btn").addEventListener("click", () => fleetCommand("resume"));
   $("abort-rtl-btn").addEventListener("click", () => fleetCommand("abort", { mode: "rtl" }));
   $("abort-land-btn").addEventListener("click", () => fleetCommand("abort", { mode: "land" }));
   $("report-btn").addEventListener("click", () => setReportMode(!S.reportMode));
