@@ -1,5 +1,5 @@
-"""Simulated vehicles at a scenario's starts, on sockets, for `mvo-gcs fly` (which opens
-its own). Fleet flights on the virtual clock are in tests/inprocess/fleet.py."""
+"""Simulated vehicles at a scenario's starts, with ArduCopter's whole boot, for `mvo-gcs fly`
+(which opens its own connections to them). Fleet flights are in tests/inprocess/fleet.py."""
 
 from __future__ import annotations
 

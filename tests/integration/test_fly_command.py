@@ -1,21 +1,54 @@
-"""`mvo-gcs fly` end to end: plan, upload, fly and report the separation flown."""
+"""`mvo-gcs fly` end to end: plan, upload, fly and report the separation flown.
+
+The flight runs on the virtual clock: the command's own event loop (`asyncio.run`) is a
+virtual-time loop on which the vehicles run in memory, and its connections open their
+in-memory ports (the command's connection strings are the vehicles' nominal TCP ones).
+The links' sockets are tested in test_link.py and the conformance tests."""
 
 from __future__ import annotations
+
+import asyncio
+import functools
+from collections.abc import Coroutine
+from dataclasses import replace
+from typing import Any
 
 import pytest
 
 from gcs.cli.main import main
+from gcs.mavlink import client
 from planner.cases import load_case
 from sitl_mock import Simulator
+from sitl_mock.virtual_time import run_virtual
+from tests.inprocess.vehicles import SimulatedVehicles
 
 from .flights import vehicles_at_starts
 
 
-def test_fly_plans_flies_and_reports_the_separation(capsys) -> None:
-    sim = Simulator(vehicles_at_starts(load_case("case-1")), speedup=40.0)
-    with sim.running():
-        urls = ",".join(sim.connection_string(k) for k in (1, 2))
-        code = main(["fly", "case-1", "--vehicles", urls, "--altitude", "10"])
+def test_fly_plans_flies_and_reports_the_separation(
+    capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    configs = [  # on SITL's nominal ports, 5760 + 10 (k - 1)
+        replace(c, transport="memory", port=5750 + 10 * c.sysid)
+        for c in vehicles_at_starts(load_case("case-1"))
+    ]
+    vehicles = SimulatedVehicles()
+    started: list[Simulator] = []
+
+    async def with_vehicles(command: Coroutine[Any, Any, int]) -> int:
+        started.append(await vehicles.start(configs))
+        try:
+            return await command
+        finally:
+            await vehicles.stop()
+
+    urls = ",".join(f"tcp:127.0.0.1:{c.port}" for c in configs)
+    # The command takes no loop or transport opener: its asyncio.run and client.connect
+    # are the seams (a test on the old sockets would fail to connect, not pass unseen).
+    monkeypatch.setattr(asyncio, "run", lambda command: run_virtual(with_vehicles(command)))
+    monkeypatch.setattr(client, "connect", functools.partial(client.connect, opener=vehicles.open))
+    code = main(["fly", "case-1", "--vehicles", urls, "--altitude", "10"])
+    assert started, "the command's flight did not run on the virtual clock"
     out = capsys.readouterr().out
     assert code == 0, out
     assert "2 missions started" in out
