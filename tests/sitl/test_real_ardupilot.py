@@ -362,11 +362,14 @@ def test_the_operator_pauses_continues_and_lands_real_arducopter(tmp_path: Path)
           f" landed within {max(drift):.2f} m of where aborted (allowed {allowed})")  # fmt: skip
 
 
-def test_a_restarted_service_pauses_the_missions_nobody_followed(tmp_path: Path) -> None:
+def test_a_restarted_service_pauses_the_missions_nobody_followed_and_resumes_them(
+    tmp_path: Path,
+) -> None:
     """The service is killed (kill -9) mid-flight, so nobody keeps the passing order;
     restarted, it pauses every mission still flown as soon as each link is up: every
-    vehicle stops and stays stopped, by its own reports, until the operator's abort
-    (LAND) brings them down."""
+    vehicle stops and stays stopped, by its own reports. The operator then resumes the
+    flight: followed again from where each vehicle is, every one lands at its goal with
+    no pair closer than 2R (the observer's figures)."""
     scenario = load_case("case-6")
     service = ServiceProcess(tmp_path / "data")
     with service_flight(tmp_path, scenario, rate=2.0, service=service) as (
@@ -387,12 +390,23 @@ def test_a_restarted_service_pauses_the_missions_nobody_followed(tmp_path: Path)
             stopped = observer.latest()
             wait_for(lambda: observer.seconds_since(stopped) > HELD_S, 300, f"{HELD_S} s held")
             assert max(observer.moved_since(stopped)) < 0.5, observer.moved_since(stopped)
-            aborted = again.post(f"/flights/{flight}/abort", json={"mode": "land"})
-            assert aborted.status_code == 200, aborted.text
-            state = final_state(again, flight, 600)
+            resumed = again.post(f"/flights/{flight}/resume")
+            assert resumed.status_code == 200, resumed.text
+            state = final_state(again, flight, 900)
+            events = all_events(again, flight)
+        result = flown(observer, scenario)
     assert all(a["data"]["ok"] for a in answers), answers
-    assert state["state"] == "aborted", state
-    print(f"restart: {[a['data']['detail'] for a in answers]}")
+    assert state["state"] == "landed", (state, [(e["kind"], e["uav_id"]) for e in events][-20:])
+    assert result.separation_m is not None and result.separation_m >= two_r(scenario), (
+        result.describe()
+    )
+    far = {uav: round(d, 2) for uav, d in result.landed_m.items() if d > ARRIVAL_M + LAND_DRIFT_M}
+    assert all(result.down.values()) and not far, (result.down, far)
+    stops = [v["detail"] for v in resumed.json()["vehicles"]]
+    print(
+        f"restart: {[a['data']['detail'] for a in answers]}; resumed: {stops}; "
+        f"{result.describe()}; landings {_rounded(result.landed_m)}"
+    )
 
 
 def under_way(client: httpx.Client, flight: str) -> bool:
