@@ -17,13 +17,14 @@ from planner.geometry.clearance import distance_to_polyline
 from planner.geometry.grid_search import GridGraph
 from planner.model.scenario import Scenario
 from planner.model.trajectory import Trajectory, merge_collinear
-from planner.search.any_angle import pull_string, tighten
+from planner.search.any_angle import pull_strings, tighten_all
 
 Array = NDArray[np.float64]
 Route = list[tuple[int, int]]
 WINDOW = 5.0  # cells of lone path searched on either side of where a UAV hovers
 STORED_SHIFT = 1e-6  # cells: more than a stored plan's rounding (DIGITS) moves a point, so
 # that a corner tightened until it just touches a blocked cell stays clear once rounded
+AT_ONCE = 100  # UAVs shaped together: fewer would cost more numpy calls per path
 
 
 def routes(
@@ -72,14 +73,19 @@ def shaped(
 ) -> dict[str, Array]:
     """The routes as polylines, pulled and tightened. Shortcuts and tightening only
     shorten them; `limit` is the safe start's hard limit (none by default): past it the
-    rest of the fleet keeps its grid paths (as safe, a bit longer)."""
-    geometry = {}
-    for u in scenario.uavs:
-        cells = merge_collinear(np.array(found[u.id], dtype=float))
-        if not limit.expired():
-            pulled = pull_string(cells, u.radius, blocked)
-            cells = tighten(pulled, u.radius + STORED_SHIFT, blocked)
-        geometry[u.id] = cells
+    rest of the fleet keeps its grid paths (as safe, a bit longer). The fleet is shaped
+    AT_ONCE UAVs at a time (`pull_strings`, `tighten_all`: one numpy call for many paths),
+    the limit read before each batch."""
+    uavs = scenario.uavs
+    geometry = {u.id: merge_collinear(np.array(found[u.id], dtype=float)) for u in uavs}
+    for first in range(0, len(uavs), AT_ONCE):
+        if limit.expired():
+            break
+        batch = uavs[first : first + AT_ONCE]
+        pulled = pull_strings([geometry[u.id] for u in batch], [u.radius for u in batch], blocked)
+        clearances = [u.radius + STORED_SHIFT for u in batch]
+        for u, cells in zip(batch, tighten_all(pulled, clearances, blocked), strict=True):
+            geometry[u.id] = cells
     return geometry
 
 
