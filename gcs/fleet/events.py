@@ -61,6 +61,7 @@ class EventKind(StrEnum):
     POSITIONS = "Positions"  # stored only, once a second from PROGRESS: the flown tracks
     TAKEN_OVER = "TakenOver"  # another service took the flight over
     UNFOLLOWED_PAUSED = "UnfollowedPaused"  # its mission paused: nobody kept its order
+    AUTO_RESUMED = "AutoResumed"  # a flight taken over resumed by the service (`detail`)
     # no longer made: the schedule keeper's pause and resume of the vehicles waiting for a
     # late one, before the passing order's WAITING and WAIT_OVER; databases keep them
     PAUSED = "Paused"

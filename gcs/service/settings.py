@@ -138,6 +138,12 @@ class Settings(BaseSettings):
     lease_renew_s: float = Field(
         default=1.0, gt=0, le=100, description="how often a service renews its leases"
     )
+    resume_taken_over: bool = Field(
+        default=True,
+        description="resume a flight taken over in the air from a service that died, as "
+        "soon as every vehicle is heard (each stopped first, then let go in the passing "
+        "order); false: it stays interrupted, its missions paused, for the operator",
+    )
 
     @property
     def host_names(self) -> frozenset[str]:

@@ -34,7 +34,7 @@ WIRE_KINDS = [
     "ItemReached", "Waiting", "WaitOver", "OperatorHeld", "OperatorContinued", "Withdrawn",
     "VehicleLinkRegained", "AddressClaimed", "Progress", "VehicleFinished", "Aborted",
     "FlightEnded", "FlightState", "ObjectReported", "OperatorCommand", "Positions",
-    "TakenOver", "UnfollowedPaused", "Paused", "Resumed",
+    "TakenOver", "UnfollowedPaused", "AutoResumed", "Paused", "Resumed",
 ]  # fmt: skip
 """Every `kind` a client has ever been sent or a database stores: never renamed."""
 

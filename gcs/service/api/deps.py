@@ -89,8 +89,9 @@ class Services:
         operator = OperatorCommands(flights, registry)
         leases = LeaseRepository(db, holder_for(settings), settings.lease_s)
         control = FlightControl(
-            leases, flights, operator, vehicles, registry, settings.lease_renew_s
-        )
+            leases, flights, operator, vehicles, registry, settings.lease_renew_s,
+            resume_taken_over=settings.resume_taken_over,
+        )  # fmt: skip
         flights.claim_control, flights.attach_vehicles = control.claim_for_upload, control.attach
         operator.require = control.require
         planning = PlanningService(scenarios, plans, jobs, metrics, claim=leases.claim_job)

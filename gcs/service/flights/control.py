@@ -13,7 +13,8 @@ order was kept by the dead service's follower, which is gone; so a flight taken 
 the air is `interrupted`, as after a restart, each vehicle still flying its mission is
 paused as soon as its link is up (nobody keeps the order), and the flight is watched
 until every vehicle is down: resume, abort, hold, land and return work on it from the
-survivor.
+survivor, which resumes it by itself (`resume_taken_over`) once every vehicle is heard
+and paused, unless the operator commands it first.
 An `aborting` flight stays so, its abort sent again to every vehicle not yet down.
 
 A service that finds a flight it thought its own held by another (it was frozen longer
@@ -77,9 +78,12 @@ class FlightControl:
         vehicles: VehicleRepository,
         registry: VehicleRegistry,
         renew_s: float,
+        *,
+        resume_taken_over: bool = False,
     ) -> None:
         self.leases, self.flights, self.operator = leases, flights, operator
         self.vehicles, self.registry = vehicles, registry
+        self.resume_taken_over = resume_taken_over
         self.renew_s = min(renew_s, leases.lease_s / 2)
         self._task: asyncio.Task[None] | None = None
         self._held: set[str] = set()  # as the last renewal or claim found: no query needed
@@ -193,6 +197,9 @@ class FlightControl:
                 "are paused. Resume the flight, or land, return or abort the vehicles",
             )
             self.operator.pause_unfollowed(row.id, row.bindings)
+            if self.resume_taken_over:
+                by = f"by service {self.holder.id}, which took it over from {previous}"
+                self.operator.resume_when_heard(row.id, by)
         fallback = _abort_of(row) if state == F.ABORTING else None
         if fallback is not None:  # the dead service may not have reached every vehicle
             self.operator.owe_abort(row.id, fallback, row.bindings.values())

@@ -41,6 +41,8 @@ log = logging.getLogger("mvo_gcs.operator")
 F = FlightState
 VehicleAction = Literal["hold", "land", "rtl", "continue"]
 DOWN_POLL_S = 0.25
+RESUME_WITHIN_S = 60.0
+"""How long a flight taken over waits for every vehicle to be heard to resume by itself."""
 SETTLE_S = 4.0
 """How long every vehicle must have been down, and nothing sent to any, before a flight
 closes: longer than a packet may take on a link that is still up (its timeout)."""
@@ -60,6 +62,8 @@ class OperatorCommands:
         self._unfollowed: dict[str, dict[str, str]] = {}
         """Per interrupted flight: the vehicles whose missions are to be paused once
         reachable (nobody keeps their passing order), until the operator commands them."""
+        self._resumers: dict[str, asyncio.Task[None]] = {}
+        """Per flight taken over in the air: its resume once every vehicle is heard."""
 
     # --- the fleet ---------------------------------------------------------------------
 
@@ -148,19 +152,52 @@ class OperatorCommands:
                 await self.book.transition(flight_id, F.FLYING, "continued by the operator")
             return _answers(row, outcomes, asked)
 
-    async def resume(self, flight_id: str) -> list[VehicleAnswer]:
+    def resume_when_heard(self, flight_id: str, why: str) -> None:
+        """Resume the flight by itself (taken over in the air) once every vehicle is heard
+        and each pause owed to it was tried, within `RESUME_WITHIN_S`; any command of the
+        operator's on the flight or one of its vehicles first calls it off."""
+        self._resumers[flight_id] = asyncio.ensure_future(self._resume_when_heard(flight_id, why))
+
+    async def _resume_when_heard(self, flight_id: str, why: str) -> None:
+        bindings = await self.book.bindings(flight_id)
+        deadline = _now() + RESUME_WITHIN_S
+        while await self.book.state(flight_id) == F.INTERRUPTED:
+            heard = all(self.registry.link_or_none(v) is not None for v in bindings.values())
+            if heard and not self._unfollowed.get(flight_id):
+                self._resumers.pop(flight_id, None)  # from here on, no command calls it off
+                try:
+                    answers = await self.resume(flight_id, why)
+                    detail = "; ".join(f"{a.uav_id}: {a.detail}" for a in answers)
+                except Exception as exc:  # refused (409), or a vehicle did not answer
+                    detail = f"not resumed: {exc}"
+                ok = await self.book.state(flight_id) == F.FLYING
+                self._tell(flight_id, EventKind.AUTO_RESUMED, {"ok": ok, "detail": detail})
+                return
+            if _now() > deadline:
+                detail = f"not resumed: not every vehicle heard within {RESUME_WITHIN_S:g} s"
+                self._tell(flight_id, EventKind.AUTO_RESUMED, {"ok": False, "detail": detail})
+                return
+            await asyncio.sleep(DOWN_POLL_S)
+
+    def _tell(self, flight_id: str, kind: EventKind, data: dict[str, Any]) -> None:
+        message = {"type": "event", "kind": kind, **data}
+        self.book.events.record(flight_id, kind, message, data.get("uav_id"))
+        self.book.tell(flight_id, message)
+
+    async def resume(self, flight_id: str, why: str = "by the operator") -> list[VehicleAnswer]:
         """Follow an interrupted flight again from where its vehicles are
         (`FlightService.resume`). The watch until every vehicle is down, and its pauses
         of the vehicles nobody followed, stop first (none may land after the follower's
         go); both carry on if the flight does not resume."""
         pending = dict(self._unfollowed.get(flight_id, {}))
+        self.operator_took(flight_id)  # a resume by itself waiting is called off
         watcher = self._watchers.pop(flight_id, None)
         if watcher is not None:
             watcher.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await watcher
         try:
-            return await self.flights.resume(flight_id)
+            return await self.flights.resume(flight_id, why)
         finally:
             if await self.book.state(flight_id) == F.INTERRUPTED:
                 if pending:
@@ -242,6 +279,9 @@ class OperatorCommands:
             self._unfollowed.pop(flight_id, None)
         else:
             self._unfollowed.get(flight_id, {}).pop(vehicle_id, None)
+        resumer = self._resumers.pop(flight_id, None)
+        if resumer is not None:
+            resumer.cancel()
 
     def stop_watching(self, flight_id: str) -> None:
         """Another service holds the flight now: it watches it, not this one."""
@@ -250,6 +290,7 @@ class OperatorCommands:
             watcher.cancel()
         self._owed.pop(flight_id, None)
         self._unfollowed.pop(flight_id, None)
+        self.operator_took(flight_id)  # no resume of a flight another service holds
 
     async def _until_down(self, flight_id: str) -> None:
         bindings = await self.book.bindings(flight_id)
@@ -308,10 +349,8 @@ class OperatorCommands:
             except GcsError as exc:
                 ok, detail = False, f"mission not paused ({exc}): land, return or abort it"
             log.warning("flight %s: %s: %s", flight_id, uav, detail)
-            kind = EventKind.UNFOLLOWED_PAUSED
-            message = {"type": "event", "kind": kind, "uav_id": uav, "ok": ok, "detail": detail}
-            self.book.events.record(flight_id, kind, message, uav)
-            self.book.tell(flight_id, message)
+            data = {"uav_id": uav, "ok": ok, "detail": detail}
+            self._tell(flight_id, EventKind.UNFOLLOWED_PAUSED, data)
 
     def _all_down(self, flight_id: str, vehicle_ids: Iterable[str]) -> bool:
         """Every vehicle disarmed on the ground, and nothing of the flight still running
@@ -337,10 +376,11 @@ class OperatorCommands:
                 self.watch_until_down(row.id)
 
     async def close(self) -> None:
-        for watcher in list(self._watchers.values()):
-            watcher.cancel()
-        if self._watchers:
-            await asyncio.wait(list(self._watchers.values()), timeout=2.0)
+        tasks = [*self._watchers.values(), *self._resumers.values()]
+        for task in tasks:
+            task.cancel()
+        if tasks:
+            await asyncio.wait(tasks, timeout=2.0)
 
     # --- helpers ---------------------------------------------------------------------------
 

@@ -267,7 +267,7 @@ class FlightService:
 
     # --- following an interrupted flight again -------------------------------------------
 
-    async def resume(self, flight_id: str) -> list[VehicleAnswer]:
+    async def resume(self, flight_id: str, why: str = "by the operator") -> list[VehicleAnswer]:
         """Follow an interrupted flight again (after a restart or a takeover) from where
         its vehicles are: each still in the plan is stopped, then let go in the passing
         order; the flight is `flying` again. Refused (409), with nothing commanded, while
@@ -293,7 +293,8 @@ class FlightService:
                 active.fleet.close()
                 return self._answers(active, outcomes)  # still interrupted; those stopped stay
             stopped = ", ".join(f"{uav}: {o.detail}" for uav, o in sorted(outcomes.items()))
-            await self.book.transition(flight_id, F.FLYING, f"resumed; stopped first: {stopped}")
+            note = f"resumed {why}; stopped first: {stopped}"
+            await self.book.transition(flight_id, F.FLYING, note)
             slot.start_runner(self._follow(active))
             return self._answers(active, outcomes)
 
