@@ -174,12 +174,13 @@ def safe_start(engine: Engine, world: Map, free: NDArray[np.bool_], start: Budge
     time budget is not read here (only `start`, the optional hard limit)."""
     state = engine.state
     failed: Counter[str] = Counter()
+    searches: dict[str, space_time.Failure] = {}  # the space-time searches that failed
     while not start.expired():
         candidates = [u for u in state.table.troubled() if not failed[u]]
         if not candidates:
             return
         uav = candidates[0]
-        flight = safe_flight(engine, uav, free, start)
+        flight = safe_flight(engine, uav, free, start, searches)
         if flight is not None and engine.adopt(uav, flight, Phase.SAFE_START):
             failed.clear()
         else:
@@ -189,17 +190,22 @@ def safe_start(engine: Engine, world: Map, free: NDArray[np.bool_], start: Budge
 
 
 def safe_flight(
-    engine: Engine, uav: str, free: NDArray[np.bool_], start: Budget
+    engine: Engine,
+    uav: str,
+    free: NDArray[np.bool_],
+    start: Budget,
+    failures: dict[str, space_time.Failure] | None = None,
 ) -> Trajectory | None:
     """A flight for `uav` clear of every other one: hovering along its lone path, else
-    a space-time search (whose path is then pulled and re-timed if that is cheaper)."""
+    a space-time search (whose path is then pulled and re-timed if that is cheaper;
+    `failures`: the searches that failed, not run again where nothing they met changed)."""
     state, flow = engine.state, engine.flow
     assert isinstance(flow, AnytimeFlow)
     spec, others = state.specs[uav], movers(state, uav)
     flight = schedule(flow.geometry[uav], spec.speed, spec.radius, others)
     if flight is not None:
         return flight
-    found = space_time.search(spec, free, others, SearchLimits(), start.expired)
+    found = space_time.search(spec, free, others, SearchLimits(), start.expired, failures)
     if found is None:
         return None
     pulled = pull_string(lone_paths.geometry_of(found), spec.radius, state.table.blocked)
