@@ -13,7 +13,10 @@ with SIGKILL. Two times, from the kill:
 - *in control*: the first answer of `b`'s `GET /flights/{id}/live-state` (polled every
   50 ms once the claim is seen; before it, only `GET /flights/{id}` is polled, which reads
   storage and prompts no takeover) with every vehicle online: abort, hold and land
-  would reach them all.
+  would reach them all;
+- *resumed*: the `AutoResumed` event `b` records once it has paused every mission
+  (nobody kept the passing order), stopped each vehicle again where it is and handed
+  the flight to its own follower (`flying` again).
 
 The flight is then aborted (LAND) on `b` and waited on until `aborted`, and `a` is
 started again for the next try.
@@ -51,8 +54,8 @@ POLL_S = 0.05
 
 def one_try(
     a: ServiceProcess, b: ServiceProcess, plan: dict[str, Any], scenario_id: str, url: str
-) -> tuple[float, float]:
-    """(claimed, in control) seconds after the kill."""
+) -> tuple[float, float, float]:
+    """(claimed, in control, resumed) seconds after the kill."""
     scenario = load_case(CASE)
     with (
         fleet_at_starts(scenario, speedup=SPEEDUP).running() as sim,
@@ -71,12 +74,20 @@ def one_try(
         in_control = (datetime.now(UTC) - killed).total_seconds()
         assert flight.airborne(), "landed before the takeover: slow the mock down"
         assert "AUTO" in flight.modes(), flight.modes()  # flying their missions on
+        event = wait_for(lambda: _event(on_b, fid, "AutoResumed"), 60, "the resume", POLL_S)
+        assert event["data"]["ok"], event
+        resumed = (datetime.fromisoformat(event["created_at"]) - killed).total_seconds()
         flight.client = on_b
         aborted = flight.post("abort", mode="land")
         assert aborted.status_code == 200 and all(v["ok"] for v in aborted.json()["vehicles"])
         flight.wait_state("aborted")
     assert _uploads(url, fid) == len(ids), "a mission was uploaded again"
-    return claimed, in_control
+    return claimed, in_control, resumed
+
+
+def _event(client: httpx.Client, flight_id: str, kind: str) -> dict[str, Any] | None:
+    events = client.get(f"/flights/{flight_id}/events", params={"limit": 10_000}).json()
+    return next((e for e in events if e["kind"] == kind), None)
 
 
 def _uploads(url: str, flight_id: str) -> int:
@@ -94,9 +105,8 @@ def _all_online(client: httpx.Client, flight_id: str) -> bool:
     return answer.status_code == 200 and all(v["online"] for v in answer.json()["vehicles"])
 
 
-def report(rows: list[tuple[float, float]], command: str) -> str:
-    claimed = [c for c, _ in rows]
-    control = [c for _, c in rows]
+def report(rows: list[tuple[float, float, float]], command: str) -> str:
+    claimed, control, resumed = ([row[k] for row in rows] for k in range(3))
     lines = [
         "# Takeover after `kill -9` of the controlling service",
         "",
@@ -116,15 +126,17 @@ def report(rows: list[tuple[float, float]], command: str) -> str:
         f"{max(claimed):.2f} | {min(claimed):.2f} |",
         f"| in control (live state, every vehicle online) | {statistics.median(control):.2f} "
         f"| {max(control):.2f} | {min(control):.2f} |",
+        f"| resumed (`AutoResumed` stored: paused, stopped again, followed) | "
+        f"{statistics.median(resumed):.2f} | {max(resumed):.2f} | {min(resumed):.2f} |",
         "",
-        "Each try (seconds after the kill): "
-        + ", ".join(f"{c:.2f} / {o:.2f}" for c, o in rows)
+        "Each try (seconds after the kill, claimed / in control / resumed): "
+        + ", ".join(" / ".join(f"{x:.2f}" for x in row) for row in rows)
         + ".",
         "",
         "The lease runs out 2 to 3 s after the kill (the last renewal came up to 1 s before "
         "it) and the survivor looks once a second, so a takeover takes between 2 and 4 s "
-        "plus the claim and the vehicles' links; every try flew on, uploaded nothing, and "
-        "ended `aborted` by the survivor.",
+        "plus the claim and the vehicles' links; every try flew on, was resumed by the "
+        "survivor, uploaded nothing, and ended `aborted` by the survivor.",
         "",
     ]
     return "\n".join(lines)
@@ -141,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     server = PostgresServer(bindir)
     server.start()
-    rows: list[tuple[float, float]] = []
+    rows: list[tuple[float, float, float]] = []
     try:
         with (
             server.database() as url,
@@ -157,9 +169,10 @@ def main(argv: list[str] | None = None) -> int:
                     a.start()
                 started = time.monotonic()
                 rows.append(one_try(a, b, plan, sid, url))
+                claimed, in_control, resumed = rows[-1]
                 print(
-                    f"try {i + 1}: claimed {rows[-1][0]:.2f} s, in control {rows[-1][1]:.2f} s "
-                    f"({time.monotonic() - started:.0f} s)",
+                    f"try {i + 1}: claimed {claimed:.2f} s, in control {in_control:.2f} s, "
+                    f"resumed {resumed:.2f} s ({time.monotonic() - started:.0f} s)",
                     flush=True,
                 )
     finally:
