@@ -24,6 +24,7 @@ from gcs.fleet.fleet import Fleet
 from gcs.fleet.outcome import VehicleOutcome
 from gcs.fleet.vehicle_limits import read_limits
 from gcs.mavlink.actions import FlightActions
+from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.mission_protocol import MissionClient, first_mismatch
@@ -539,18 +540,26 @@ async def _refuse_other_missions(
     row: FlightRow, links: dict[str, VehicleLink], flight: FlightPlan
 ) -> None:
     """Each vehicle in the air must still hold this flight's mission, as built again from
-    its plan (not one uploaded since, by a live replan or another ground station)."""
-    for uav, link in sorted(links.items()):
-        if not link.state.airborne:
-            continue
-        held = await MissionClient(link).download()
+    its plan (not one uploaded since, by a live replan or another ground station); the
+    missions are read back from all at once."""
+
+    async def check(uav: str, link: VehicleLink) -> None:
+        who = f"vehicle {row.bindings[uav]} ({uav})"
+        try:
+            held = await MissionClient(link).download()
+        except GcsError as exc:
+            message = f"flight {row.id}: {who}'s mission could not be read: {exc}"
+            raise StateConflict(message) from exc
         seq = first_mismatch(flight.missions[uav], held)
         if seq is not None:
             raise StateConflict(
-                f"flight {row.id}: vehicle {row.bindings[uav]} ({uav}) holds another mission "
-                f"than this flight's (item {seq} differs; replanned live, or uploaded by "
-                "another ground station): it cannot be resumed; land, return or abort it"
+                f"flight {row.id}: {who} holds another mission than this flight's (item "
+                f"{seq} differs; replanned live, or uploaded by another ground station): "
+                "it cannot be resumed; land, return or abort it"
             )
+
+    airborne = [(uav, link) for uav, link in sorted(links.items()) if link.state.airborne]
+    await asyncio.gather(*(check(uav, link) for uav, link in airborne))
 
 
 def _refuse_airborne(row: FlightRow, links: dict[str, VehicleLink]) -> None:
