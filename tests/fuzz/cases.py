@@ -48,6 +48,7 @@ class FuzzCase:
     late: int | None = None  # the sysid that takes off LATE_TAKE_OFF_S late
     actions: tuple[Action, ...] = ()
     storage_delay_s: float = 0.002
+    resume: bool = False  # after a restart, the operator resumes the flight (else aborts)
 
     @classmethod
     def draw(cls, seed: int, max_uavs: int = 6) -> FuzzCase:
@@ -61,9 +62,11 @@ class FuzzCase:
             sorted((_action(rng, uavs, size) for _ in range(int(rng.integers(0, 4)))),
                    key=lambda a: a.at_s)
         )  # fmt: skip
+        resume = bool(np.random.default_rng([seed, 0xF2]).random() < 0.5)  # its own stream:
+        # the seeds drawn before it still draw the same flights
         return cls(
             seed, family, size, uavs, float(rng.choice([5.0, 10.0])), faults, late, actions,
-            float(rng.choice([0.0, 0.002, 0.02])),
+            float(rng.choice([0.0, 0.002, 0.02])), resume,
         )  # fmt: skip
 
     def scenario(self) -> Scenario:
@@ -79,6 +82,8 @@ class FuzzCase:
         faults = ", ".join(f"uav{k}: {_faults_text(f)}" for k, f in sorted(self.faults.items()))
         late = f"; uav{self.late} takes off {LATE_TAKE_OFF_S:.0f} s late" if self.late else ""
         actions = "; ".join(a.describe() for a in self.actions) or "none"
+        if any(a.kind == "restart" for a in self.actions):
+            actions += "; after the restart, " + ("resume" if self.resume else "abort")
         return (
             f"seed {self.seed}: {self.family} of {self.uavs} UAVs on {self.size}x{self.size} "
             f"cells at {self.speed_m_s:g} m/s; faults: {faults or 'none'}{late}; "

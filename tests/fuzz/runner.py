@@ -6,7 +6,8 @@ actions are sent at their moments, and the invariants are watched all along:
 - no two airborne vehicles closer than 2R, by the simulator's truth (a vehicle sent home
   is left out from then on: RTL flies straight home, outside the plan's order);
 - every operator command is answered by every vehicle that is online, within 1 s;
-- the flight ends (landed, aborted, ended; after a restart, aborted by the operator);
+- the flight ends (landed, aborted, ended; after a restart, resumed or aborted by the
+  operator, as the case draws: a resumed flight that lands has every vehicle at its goal);
 - every state change is one the transition table allows;
 - every event the flight told its listeners is stored;
 - no answer is a 5xx, and nothing raises where nobody catches it.
@@ -15,6 +16,7 @@ actions are sent at their moments, and the invariants are watched all along:
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import functools
 import itertools
 import json
@@ -57,6 +59,8 @@ GOAL_RADIUS_M = 2.0  # ArduCopter's WP_RADIUS_M: a mission's goal is reached wit
 WATCH_EVERY_S = 0.1
 END_WITHIN_S = 900.0
 REABORT_S = 300.0
+RESUME_AFTER_S = 30.0
+"""How long the operator waits for every vehicle to be online again before a resume."""
 """An abort that has not brought everyone down by then (held after it, say) is given again."""
 FINAL = {"landed", "ended", "aborted"}
 PLAN_REQUEST = {"time_budget_s": None, "iterations": 60, "population": 20, "wait_s": 60}
@@ -376,26 +380,49 @@ class Flight:
 
     async def _until_ended(self) -> None:
         """Let go of what the operator holds and wait for the end; after a restart
-        (interrupted), or when a flight held after its abort hovers on, abort with LAND, as
-        an operator would; a flight that does not end within the bound is a violation."""
+        (interrupted), resume once if the case says so, and abort with LAND if it does not
+        resume or does not say so, as when a flight held after its abort hovers on, as an
+        operator would; a flight that does not end within the bound is a violation."""
         loop = asyncio.get_running_loop()
         deadline = loop.time() + END_WITHIN_S
         for uav in sorted(self.held):
             await self._act(Action(0.0, "continue", uav=uav))
         if (await self._state()) == "paused":
             await self._act(Action(0.0, "continue"))
-        aborted_at = -math.inf
+        aborted_at, resumed = -math.inf, False
         while loop.time() < deadline:
             state = await self._state()
             if state in FINAL:
                 self.report.outcome = state
                 return
             stuck = state == "aborting" and loop.time() - aborted_at > REABORT_S
+            restarted = any(a.kind == "restart" for a in self.case.actions)
+            if state == "interrupted" and self.case.resume and restarted and not resumed:
+                resumed = True
+                if await self._resume():
+                    continue
             if (state == "interrupted" and aborted_at < 0) or stuck:
                 aborted_at = loop.time()
                 await self._act(Action(0.0, "abort-land"))
             await asyncio.sleep(1.0)
         self.report.violations.append(f"the flight did not end within {END_WITHIN_S:.0f} s")
+
+    async def _resume(self) -> bool:
+        """The operator's resume of an interrupted flight, once every vehicle is online
+        again (or after RESUME_AFTER_S); whether it flies again (a 409 is an answer: a
+        vehicle offline, or its mission replanned live)."""
+
+        async def online() -> bool:
+            live = await self.service.client.get(f"/flights/{self.flight_id}/live-state")
+            return live.status_code == 200 and all(v["online"] for v in live.json()["vehicles"])
+
+        with contextlib.suppress(AssertionError):  # not all online: resumed all the same
+            await until(online, RESUME_AFTER_S, "every vehicle online")
+        answer = await self._call("post", f"/flights/{self.flight_id}/resume")
+        self.report.notes.append(f"resume: {answer.status_code} {answer.text[:160]}")
+        if answer.status_code not in (200, 409):
+            self.report.violations.append(f"resume: answered {answer.status_code}")
+        return answer.status_code == 200 and await self._state() == "flying"
 
     async def _state(self) -> str:
         flight = (await self.service.client.get(f"/flights/{self.flight_id}")).json()

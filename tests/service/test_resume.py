@@ -73,6 +73,25 @@ async def test_only_an_interrupted_flight_resumes(gcs: InProcessService) -> None
     assert (await gcs.client.post("/flights/nope/resume")).status_code == 404
 
 
+async def test_a_flight_held_during_its_start_is_not_resumed(gcs: InProcessService) -> None:
+    """Its vehicles are up but never started their missions together: a resume would
+    start them one by one, so it is refused (found by the fuzzer: it was a 500)."""
+    sim = await gcs.vehicles.at_starts(load_case("case-1"))
+    flight = await Flight.make(gcs.client, sim)
+    await flight.upload()
+    assert (await flight.post("start")).status_code == 202
+    await until(lambda: all(sim.state(k).alt > 2.0 for k in sim.sysids), 120, "all up")
+    assert await flight.state() == "starting"
+    assert (await flight.post("pause")).status_code == 200
+    assert await flight.state() == "interrupted"
+    refused = await flight.post("resume")
+    assert refused.status_code == 409 and "has not started its mission" in refused.text, (
+        refused.text
+    )
+    assert (await flight.post("abort", mode="land")).status_code == 200
+    await flight.wait_state("aborted")
+
+
 async def test_a_flight_with_a_vehicle_not_heard_stays_interrupted(
     gcs: InProcessService,
 ) -> None:

@@ -28,6 +28,7 @@ from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.mission_protocol import MissionClient, first_mismatch
+from gcs.mission.build import takeoff_index
 from gcs.mission.fence import FencePlan, fence_of
 from gcs.mission.files import plan_document
 from gcs.mission.flight_plan import FlightPlan, flight_plan
@@ -280,12 +281,13 @@ class FlightService:
                 raise StateConflict(
                     f"flight {flight_id} is {row.state}: only an interrupted flight resumes"
                 )
+            slot.take_up_again()
             plan, scenario = await self._flyable(row)
             fence = await self._fence_of(row)
             await self.attach_vehicles(row.bindings.values())
             links = {uav: self.registry.link(vid) for uav, vid in row.bindings.items()}
-            _refuse_unresumable(row, links)
             flight = await _flight_for(plan, scenario, links, row.options)
+            _refuse_unresumable(row, links, flight)
             await _refuse_other_missions(row, links, flight)
             active = self._activate(row, links, flight, fence)
             outcomes = await active.fleet.resume()
@@ -296,7 +298,10 @@ class FlightService:
             stopped = ", ".join(f"{uav}: {o.detail}" for uav, o in sorted(outcomes.items()))
             note = f"resumed {why}; stopped first: {stopped}"
             await self.book.transition(flight_id, F.FLYING, note)
-            slot.start_runner(self._follow(active))
+            try:
+                slot.start_runner(self._follow(active))
+            except Preempted as exc:  # aborted or held while it resumed: that one stands
+                raise StateConflict(f"{exc}: it was not resumed") from None
             return self._answers(active, outcomes)
 
     async def _start_failed(self, active: ActiveFlight, failed: dict[str, str]) -> None:
@@ -529,11 +534,22 @@ async def _hold_airborne(active: ActiveFlight) -> list[str]:
     return [uav for uav in held if uav is not None]
 
 
-def _refuse_unresumable(row: FlightRow, links: dict[str, VehicleLink]) -> None:
-    """A flight resumes only with a vehicle in the air (`registry.link` has refused one
-    not heard)."""
+def _refuse_unresumable(row: FlightRow, links: dict[str, VehicleLink], flight: FlightPlan) -> None:
+    """A flight resumes with a vehicle in the air, each airborne one having started its
+    mission (`registry.link` has refused one not heard)."""
     if not any(link.state.airborne for link in links.values()):
         raise StateConflict(f"flight {row.id}: every vehicle is on the ground: nothing resumes")
+    for uav, link in sorted(links.items()):
+        state = link.state
+        started = state.mode == "AUTO" or state.mission_seq > takeoff_index(
+            flight.missions[uav].items
+        )
+        if state.airborne and not started:
+            raise StateConflict(
+                f"flight {row.id}: vehicle {row.bindings[uav]} ({uav}) has not started its "
+                "mission (the flight was interrupted during its start): it cannot be "
+                "resumed; upload and start it again once down, or abort"
+            )
 
 
 async def _refuse_other_missions(

@@ -71,6 +71,11 @@ class FlightSlot:
         self.runner = asyncio.ensure_future(coro)
         return self.runner
 
+    def take_up_again(self) -> None:
+        """The operator resumes the flight: a runner may start again, unless another
+        intervention comes before it does."""
+        self.preempted = False
+
     @property
     def busy(self) -> bool:
         return any(t is not None and not t.done() for t in (self._operation, self.runner))
