@@ -362,8 +362,9 @@ def test_the_operator_pauses_continues_and_lands_real_arducopter(tmp_path: Path)
           f" landed within {max(drift):.2f} m of where aborted (allowed {allowed})")  # fmt: skip
 
 
+@pytest.mark.parametrize("speed", [None, 10.0], ids=["default speed", "10 m/s"])
 def test_a_restarted_service_pauses_the_missions_nobody_followed_and_resumes_them(
-    tmp_path: Path,
+    tmp_path: Path, speed: float | None
 ) -> None:
     """The service is killed (kill -9) mid-flight, so nobody keeps the passing order;
     restarted, it pauses every mission still flown as soon as each link is up: every
@@ -372,7 +373,7 @@ def test_a_restarted_service_pauses_the_missions_nobody_followed_and_resumes_the
     no pair closer than 2R (the observer's figures)."""
     scenario = load_case("case-6")
     service = ServiceProcess(tmp_path / "data")
-    with service_flight(tmp_path, scenario, rate=2.0, service=service) as (
+    with service_flight(tmp_path, scenario, speed, rate=2.0, service=service) as (
         client, flight, observer, _,
     ):  # fmt: skip
         wait_for(lambda: under_way(client, flight), 600, "every vehicle on its way", every=0.2)
