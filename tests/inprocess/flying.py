@@ -12,6 +12,7 @@ from typing import Any
 
 import httpx
 
+from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
 from planner.model.scenario import Scenario
 from sitl_mock import Simulator
@@ -156,6 +157,21 @@ async def live(client: httpx.AsyncClient, vehicle_id: str) -> dict[str, Any]:
 
 async def online(client: httpx.AsyncClient, vehicle_id: str) -> bool:
     return bool((await live(client, vehicle_id)).get("online"))
+
+
+def assert_down_apart_at_the_goals(sim: Simulator, scenario: Scenario) -> None:
+    """By the simulator's truth: no two vehicles ever closer than 2R, and every one
+    disarmed within 2.5 m of its goal."""
+    cell = scenario.grid.cell_size_m
+    needed = 2 * max(u.radius for u in scenario.uavs) * cell
+    separation = sim.min_separation()
+    assert separation is not None and separation.distance_m >= needed, separation
+    frame = GridFrame.of(scenario)
+    for sysid, spec in enumerate(scenario.uavs, start=1):
+        final = sim.final_position(sysid)
+        assert final is not None and not final.armed, final
+        x, y = frame.to_cells(final.lat, final.lon)
+        assert abs(x - spec.goal[0]) * cell < 2.5 and abs(y - spec.goal[1]) * cell < 2.5
 
 
 def ground_speed(sim: Simulator, sysid: int) -> float:

@@ -10,9 +10,13 @@ from typing import Any
 import pytest
 from httpx_ws import AsyncWebSocketSession
 
-from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
-from tests.inprocess.flying import bind, register, upload_once_online
+from tests.inprocess.flying import (
+    assert_down_apart_at_the_goals,
+    bind,
+    register,
+    upload_once_online,
+)
 from tests.inprocess.service import InProcessService
 
 pytestmark = [pytest.mark.virtual_clock]
@@ -71,17 +75,7 @@ async def test_case_vi_is_planned_uploaded_flown_and_recorded(gcs: InProcessServ
         assert stored_kinds.count(kind) >= streamed.count(kind), kind
     assert (await client.get(f"/flights/{fid}")).json()["state"] == "landed"
 
-    cell = scenario.grid.cell_size_m
-    needed = 2 * max(u.radius for u in scenario.uavs) * cell
-    separation = vehicles.min_separation()
-    assert separation is not None and separation.distance_m >= needed, separation
-    frame = GridFrame.of(scenario)
-    for sysid, spec in enumerate(scenario.uavs, start=1):
-        final = vehicles.final_position(sysid)
-        assert final is not None
-        x, y = frame.to_cells(final.lat, final.lon)
-        assert abs(x - spec.goal[0]) * cell < 2.5 and abs(y - spec.goal[1]) * cell < 2.5
-        assert not final.armed
+    assert_down_apart_at_the_goals(vehicles, scenario)
 
 
 async def _read_until_ended(ws: AsyncWebSocketSession) -> list[dict[str, Any]]:

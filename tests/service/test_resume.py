@@ -11,10 +11,9 @@ import pytest
 from gcs.mavlink import client as mavlink_client
 from gcs.mavlink.mission_item import Mission
 from gcs.mavlink.mission_protocol import MissionClient
-from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
 from sitl_mock import Simulator
-from tests.inprocess.flying import Flight, ground_speed, online
+from tests.inprocess.flying import Flight, assert_down_apart_at_the_goals, ground_speed, online
 from tests.inprocess.service import InProcessService, until
 
 pytestmark = [pytest.mark.virtual_clock, pytest.mark.slow]
@@ -35,20 +34,6 @@ async def _interrupted(gcs: InProcessService, case: str) -> tuple[Simulator, Fli
     return sim, flight
 
 
-def _assert_flown_safely_to_the_goals(sim: Simulator, flight: Flight) -> None:
-    scenario = flight.scenario
-    cell = scenario.grid.cell_size_m
-    needed = 2 * max(u.radius for u in scenario.uavs) * cell
-    separation = sim.min_separation()
-    assert separation is not None and separation.distance_m >= needed, separation
-    frame = GridFrame.of(scenario)
-    for sysid, spec in enumerate(scenario.uavs, start=1):
-        final = sim.final_position(sysid)
-        assert final is not None and not final.armed
-        x, y = frame.to_cells(final.lat, final.lon)
-        assert abs(x - spec.goal[0]) * cell < 2.5 and abs(y - spec.goal[1]) * cell < 2.5
-
-
 @pytest.mark.parametrize("case", ["case-1", "case-6"])
 async def test_a_resumed_flight_is_flown_to_its_goals_in_the_passing_order(
     gcs: InProcessService, case: str
@@ -60,7 +45,7 @@ async def test_a_resumed_flight_is_flown_to_its_goals_in_the_passing_order(
     assert body["flight"]["state"] == "flying", body
     assert all(v["ok"] for v in body["vehicles"]), body
     assert await flight.wait_state("landed", "ended", "interrupted", "aborted") == "landed"
-    _assert_flown_safely_to_the_goals(sim, flight)
+    assert_down_apart_at_the_goals(sim, flight.scenario)
     kinds = [e["kind"] for e in await flight.events()]
     assert "VehicleFinished" in kinds and "FlightEnded" in kinds
 

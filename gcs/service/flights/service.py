@@ -229,36 +229,38 @@ class FlightService:
             return row
 
     async def _run(self, active: ActiveFlight) -> None:
-        """Prepare, start together, follow to the end; the flight's state says how it went."""
-        fleet, fid = active.fleet, active.flight_id
+        """The flight's runner: prepare, start together, follow to the end."""
+        await self._in_the_operators_hands(active, self._start_and_follow)
+
+    async def _in_the_operators_hands(
+        self, active: ActiveFlight, step: Callable[[ActiveFlight], Awaitable[None]]
+    ) -> None:
+        """`step`; a bug in it leaves the flight `interrupted`, in the operator's hands
+        (a pre-emption is the operator's, who has set the state)."""
         try:
-            outcomes = await fleet.prepare()
-            if all(o.ok for o in outcomes.values()):
-                outcomes = await fleet.start()
-            failed = {uav: o.detail for uav, o in outcomes.items() if not o.ok}
-            if failed:
-                await self._start_failed(active, failed)
-                return
-            await self.book.transition(fid, F.FLYING)
+            await step(active)
         except asyncio.CancelledError:
-            raise  # pre-empted by the operator, who has set the state
-        except Exception as exc:  # a bug must leave the flight in the operator's hands
-            log.exception("flight %s: the runner failed", fid)
-            await self.to_interrupted(fid, f"the ground station failed: {exc!r}")
+            raise
+        except Exception as exc:
+            log.exception("flight %s: the runner failed", active.flight_id)
+            await self.to_interrupted(active.flight_id, f"the ground station failed: {exc!r}")
+
+    async def _start_and_follow(self, active: ActiveFlight) -> None:
+        fleet, fid = active.fleet, active.flight_id
+        outcomes = await fleet.prepare()
+        if all(o.ok for o in outcomes.values()):
+            outcomes = await fleet.start()
+        failed = {uav: o.detail for uav, o in outcomes.items() if not o.ok}
+        if failed:
+            await self._start_failed(active, failed)
             return
+        await self.book.transition(fid, F.FLYING)
         await self._follow(active)
 
     async def _follow(self, active: ActiveFlight) -> None:
         """Follow the flight to its end; the flight's state says how it went."""
         fid = active.flight_id
-        try:
-            report = await active.fleet.follow()
-        except asyncio.CancelledError:
-            raise  # pre-empted by the operator, who has set the state
-        except Exception as exc:  # a bug must leave the flight in the operator's hands
-            log.exception("flight %s: following it failed", fid)
-            await self.to_interrupted(fid, f"the ground station failed: {exc!r}")
-            return
+        report = await active.fleet.follow()
         if report.outcome == FlightOutcome.LANDED:
             await self.book.transition(fid, F.LANDED)
         elif report.outcome == FlightOutcome.ENDED:
@@ -299,7 +301,7 @@ class FlightService:
             note = f"resumed {why}; stopped first: {stopped}"
             await self.book.transition(flight_id, F.FLYING, note)
             try:
-                slot.start_runner(self._follow(active))
+                slot.start_runner(self._in_the_operators_hands(active, self._follow))
             except Preempted as exc:  # aborted or held while it resumed: that one stands
                 raise StateConflict(f"{exc}: it was not resumed") from None
             return self._answers(active, outcomes)
