@@ -1,4 +1,5 @@
-# The planning service (REST + WebSocket API) with SQLite storage in a volume.
+# The planning service (REST + WebSocket API) with SQLite storage in a volume (or
+# PostgreSQL, MVO_GCS_DATABASE_URL).
 # Build from the repository root: docker build -f docker/service.Dockerfile -t mvo-gcs .
 FROM python:3.11-slim
 
@@ -17,7 +18,7 @@ COPY pyproject.toml README.md ./
 COPY planner ./planner
 COPY gcs ./gcs
 COPY sitl_mock ./sitl_mock
-RUN pip install --no-cache-dir "./.[dask]"
+RUN pip install --no-cache-dir "./.[dask,postgres]"
 
 USER 10001
 VOLUME ["/data"]

@@ -74,7 +74,7 @@ def test_the_vehicle_image_runs_a_real_command() -> None:
 def test_compose_starts_the_service_and_the_vehicles_on_a_private_network() -> None:
     compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
     services = compose["services"]
-    assert set(services) == {"api", "vehicles", "dask-scheduler", "dask-worker"}
+    assert set(services) == {"api", "vehicles", "dask-scheduler", "dask-worker", "postgres"}
     assert services["api"]["build"]["dockerfile"] == "docker/service.Dockerfile"
     assert services["vehicles"]["build"]["dockerfile"] == "docker/sitl.Dockerfile"
     assert compose["networks"]["fleet"]["internal"] is True
@@ -106,4 +106,26 @@ def test_compose_plans_on_a_dask_scheduler_and_workers_in_a_profile() -> None:
     parsed = dask_worker.main.make_context("dask worker", worker[1:]).params
     assert parsed["scheduler"] == f"tcp://dask-scheduler:{port}"
     assert parsed["nthreads"] == 1  # one plan per worker process at a time
-    assert any("[dask]" in run for run in _instruction(DOCKER / "service.Dockerfile", "RUN"))
+    assert "dask" in _extras_installed()
+
+
+def _extras_installed() -> set[str]:
+    """The extras of mvo-gcs the service image installs (`pip install "./.[a,b]"`)."""
+    runs = " ".join(_instruction(DOCKER / "service.Dockerfile", "RUN"))
+    found = re.search(r"\./\.\[([a-z,]+)\]", runs)
+    return set(found.group(1).split(",")) if found else set()
+
+
+def test_compose_stores_on_postgresql_in_a_profile() -> None:
+    """`--profile postgres` adds a PostgreSQL server on a network of its own with the
+    service; the service stores there when MVO_GCS_DATABASE_URL names it (empty: SQLite),
+    and its image has the driver."""
+    compose = yaml.safe_load((DOCKER / "compose.yaml").read_text())
+    services = compose["services"]
+    api, postgres = services["api"], services["postgres"]
+    assert postgres["profiles"] == ["postgres"] and postgres["networks"] == ["storage"]
+    assert compose["networks"]["storage"]["internal"] is True and "storage" in api["networks"]
+    assert api["environment"]["MVO_GCS_DATABASE_URL"] == "${MVO_GCS_DATABASE_URL:-}"
+    assert postgres["environment"]["POSTGRES_DB"] == "mvo_gcs"
+    assert "postgres-data" in compose["volumes"]
+    assert "postgres" in _extras_installed()
