@@ -72,9 +72,9 @@ def event_line(event: FleetEvent) -> str | None:
 
 
 class ProgressDisplay:
-    def __init__(self, out: TextIO = sys.stdout) -> None:
-        self.out = out
-        self.live = out.isatty()
+    def __init__(self, out: TextIO | None = None) -> None:
+        self.out = out or sys.stdout  # the stdout of now, not of when this was imported
+        self.live = self.out.isatty()
         self._drawn = 0
         self._last_print = float("-inf")
 
