@@ -1,0 +1,19 @@
+"""mvo-gcs fly's progress display writes to the stdout of when it runs (one bound at
+import, once swapped and closed, as pytest's capture does, made the command fail with
+"I/O operation on closed file")."""
+
+from __future__ import annotations
+
+import io
+import sys
+
+import pytest
+
+from gcs.cli.progress_display import ProgressDisplay
+
+
+def test_the_display_writes_to_the_stdout_of_now(monkeypatch: pytest.MonkeyPatch) -> None:
+    now = io.StringIO()
+    monkeypatch.setattr(sys, "stdout", now)
+    display = ProgressDisplay()
+    assert display.out is now and not display.live  # not a terminal: lines, no redrawing
