@@ -33,7 +33,9 @@ import functools
 import os
 import platform
 import resource
+import shlex
 import statistics
+import sys
 import time
 import tracemalloc
 from collections.abc import Callable
@@ -276,10 +278,8 @@ def main() -> None:
         f"- Run {started:%Y-%m-%d %H:%M} UTC on {platform.processor() or platform.machine()}, "
         f"{os.cpu_count()} cores shared with other work, Python {platform.python_version()}, "
         f"numpy {np.__version__}; 1-minute load average {load_before:.2f} at the start.",
-        f"- Command: `.venv/bin/python bench/planner_scale.py --seeds {args.seeds} "
-        f"--budget {args.budget:g}`"
-        + (f" --families '{args.families}'" if args.families else "")
-        + ". One planner at a time in one process.",
+        f"- Command: `.venv/bin/python bench/planner_scale.py {shlex.join(sys.argv[1:])}`"
+        ". One planner at a time in one process.",
         f"- Ours: MVO `qos`, default settings, time budget {args.budget:g} s (it bounds only "
         "the improvement: the safe start runs to its end), seed = scenario seed. LaCAM: its "
         f"first solution, time limit {args.budget:g} s. PP: pymapf's prioritized planning, "
