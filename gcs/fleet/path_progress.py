@@ -43,8 +43,7 @@ class PathProgress:
         position = state.position
         if position is None or position.time_boot_ms == self._time_ms:
             return False
-        x, y = self._frame.to_cells(position.lat, position.lon)
-        here = np.array([float(x), float(y)]) * self._frame.cell_size_m
+        here = self._frame.to_metres(position.lat, position.lon)
         speed = float(np.hypot(*state.velocity_n_e_m_s))
         if self._time_ms is not None and position.time_boot_ms > self._time_ms:
             dt = (position.time_boot_ms - self._time_ms) / 1000.0
@@ -68,8 +67,7 @@ class PathProgress:
         position = state.position
         if position is None:
             return
-        x, y = self._frame.to_cells(position.lat, position.lon)
-        here = np.array([float(x), float(y)]) * self._frame.cell_size_m
+        here = self._frame.to_metres(position.lat, position.lon)
         self.s = max(lo_m, self._project(here, lo_m - BACKWARDS_M, hi_m + LOOK_AHEAD_M))
         self.speed = float(np.hypot(*state.velocity_n_e_m_s))
         self._time_ms = position.time_boot_ms

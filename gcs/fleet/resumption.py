@@ -10,8 +10,6 @@ ground at its goal has finished, and one on the ground elsewhere is out of the w
 
 from __future__ import annotations
 
-import numpy as np
-
 from gcs.fleet.crew import Crew, Fallback
 from gcs.fleet.events import Withdrawn
 from gcs.fleet.member import Member
@@ -65,10 +63,7 @@ def _find(crew: Crew, member: Member) -> None:
 
 
 def _along(crew: Crew, uav: str, visit: Visit) -> float:
-    frame = crew.flight.frame
-    x, y = frame.to_cells(visit.lat, visit.lon)
-    point = np.array([float(x), float(y)]) * frame.cell_size_m
-    return along_path(crew.flight.paths[uav], point)
+    return along_path(crew.flight.paths[uav], crew.flight.frame.to_metres(visit.lat, visit.lon))
 
 
 def _withdraw(crew: Crew, uav: str, fallback: Fallback) -> None:

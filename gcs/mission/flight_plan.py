@@ -225,8 +225,7 @@ def stopping_points(mission: Mission, path: PlannedPath, frame: GridFrame) -> Fl
     stops = []
     for item, following in itertools.pairwise(items):
         if item.command == Command.NAV_WAYPOINT and following.command in STOPPING_NEXT:
-            x, y = frame.to_cells(item.lat, item.lon)
-            stops.append(along_path(path, np.array([float(x), float(y)]) * frame.cell_size_m))
+            stops.append(along_path(path, frame.to_metres(item.lat, item.lon)))
     return np.array(stops)
 
 
@@ -241,8 +240,7 @@ def timed_visits(mission: Mission, timed: TimedPath, frame: GridFrame) -> list[V
             break
         if item.command not in (Command.NAV_WAYPOINT, Command.NAV_LAND):
             continue
-        x, y = frame.to_cells(item.lat, item.lon)
-        s = along_path(timed.path, np.array([float(x), float(y)]) * frame.cell_size_m)
+        s = along_path(timed.path, frame.to_metres(item.lat, item.lon))
         at = timed.time_at(s)
         lands = item.command == Command.NAV_LAND
         visits.append(Visit(seq, at, at, item.lat, item.lon, lands))

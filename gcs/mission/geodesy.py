@@ -69,6 +69,12 @@ class GridFrame:
         )
         return np.asarray(east) / self.cell_size_m, np.asarray(north) / self.cell_size_m
 
+    def to_metres(self, lat: float, lon: float) -> Floats:
+        """One place as metres east and north of cell (0, 0), as planned paths are kept
+        (`passing_order.PlannedPath`)."""
+        x, y = self.to_cells(lat, lon)
+        return np.array([float(x), float(y)]) * self.cell_size_m
+
 
 def to_e7(degrees: ArrayLike) -> NDArray[np.int64]:
     """Degrees to the integer degE7 of MISSION_ITEM_INT (1e-7° is about 1.1 cm)."""
