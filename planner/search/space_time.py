@@ -14,16 +14,20 @@ flights that can come near it (`search`).
 
 from __future__ import annotations
 
+import functools
 import heapq
 import itertools
 import math
+import weakref
 from bisect import bisect_right
+from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.geometry.grid_search import GridGraph
 from planner.model.scenario import UAVSpec
 from planner.model.trajectory import Trajectory
 from planner.search.sipp import Mover
@@ -32,6 +36,7 @@ MOVES = ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1), (
 _EPS = 1e-9
 BUCKET = 0.5  # seconds between the indexed positions of the other UAVs
 CLOCK_EVERY = 256  # move tests between two looks at the clock
+GOALS_KEPT = 8  # distance fields kept per grid: a UAV is searched again after others change
 
 
 @dataclass(frozen=True)
@@ -211,6 +216,18 @@ class _IndexedSearch(Search):
     touched: set[int] = field(default_factory=set)  # flights any move was tested against
     _near_key: tuple[float, float, float] | None = None
     _near: list[int] = field(default_factory=list)
+    to_goal: NDArray[np.float64] | None = None  # cell times to the goal round the obstacles
+
+    def h(self, x: int, y: int) -> float:
+        """The time to the goal round the obstacles (`to_goal`), else the octile one.
+
+        Both are admissible and consistent, but the octile distance ignores the
+        obstacles: on 250 UAVs on 250x250 (seed 1) it was 219 where the way round them
+        is 228, and the search spent its 20,000 expansions on states up to those 9 s
+        late; with the true distance the same search took 820."""
+        if self.to_goal is None:
+            return super().h(x, y)
+        return float(self.to_goal.item(x, y))
 
     def safe(self, move: Move) -> bool:
         self.tests += 1
@@ -276,6 +293,7 @@ def search(
     known = None if failures is None else failures.get(spec.id)
     if known is not None and known.fails_again(run, others):
         return None
+    run.to_goal = goal_distances(free, spec.goal) / spec.speed
     try:
         states = run.run()
     except _OutOfTime:
@@ -287,6 +305,45 @@ def search(
     if isinstance(states, str):
         return None
     return to_trajectory(states)
+
+
+@dataclass
+class _Goals:
+    """A grid's graph and the distance fields of the goals searched last."""
+
+    graph: GridGraph
+    fields: OrderedDict[tuple[int, int], NDArray[np.float64]] = field(default_factory=OrderedDict)
+
+
+_GOALS: dict[int, tuple[weakref.ref[NDArray[np.bool_]], _Goals]] = {}
+"""By grid (its free map's identity): the safe start searches on one grid, often the
+same UAV again. An entry goes when its free map is dropped."""
+
+
+def goal_distances(free: NDArray[np.bool_], goal: tuple[int, int]) -> NDArray[np.float64]:
+    """Every cell's shortest 8-connected distance to `goal` without cutting corners, the
+    moves `Search` makes (inf where cut off), as [x, y]: one Dijkstra, kept for the
+    GOALS_KEPT goals asked last on this grid."""
+    key = id(free)
+    hit = _GOALS.get(key)
+    if hit is None or hit[0]() is not free:
+        hit = (weakref.ref(free, functools.partial(_forget, key)), _Goals(GridGraph.build(~free)))
+        _GOALS[key] = hit
+    goals = hit[1]
+    distances = goals.fields.get(goal)
+    if distances is None:
+        distances = goals.graph.distances_to(goal)
+        goals.fields[goal] = distances
+        if len(goals.fields) > GOALS_KEPT:
+            goals.fields.popitem(last=False)
+    goals.fields.move_to_end(goal)
+    return distances
+
+
+def _forget(key: int, ref: weakref.ref[NDArray[np.bool_]]) -> None:
+    hit = _GOALS.get(key)
+    if hit is not None and hit[0] is ref:
+        del _GOALS[key]
 
 
 @dataclass(frozen=True)
