@@ -100,6 +100,12 @@ class PointMassFleet:
 
     def step(self, dt: float) -> None:
         self.time += dt
+        if not self.active.any() and not self.legs.on.any():
+            # Motors off everywhere and no leg to drop (on the ground before take-off and
+            # after landing): what the full step below comes to, without its work.
+            self.vel[:] = 0.0
+            self.pos[self.pos[:, 2] <= 0.0, 2] = 0.0
+            return
         self._step_horizontal()
         self._step_vertical(dt)
         self.vel[~self.active] = 0.0
@@ -112,26 +118,30 @@ class PointMassFleet:
     def _step_horizontal(self) -> None:
         legs = self.legs
         stopped = ~self.active & legs.on.any(axis=1)
-        self.base[stopped] = self.pos[stopped, :2]  # motors off: it stands where it is
-        legs.on[stopped] = False
+        if stopped.any():  # (masked writes skipped when nothing is masked: every step)
+            self.base[stopped] = self.pos[stopped, :2]  # motors off: it stands where it is
+            legs.on[stopped] = False
         if legs.on.any():
             offset, speed, finished, slowing = legs.evaluate(self.time)
             self.base += (legs.direction * (finished * legs.length)[..., None]).sum(axis=1)
             legs.on &= ~finished
-            offset[~legs.on] = 0.0
-            speed[~legs.on] = 0.0
+            off = ~legs.on
+            offset[off] = 0.0
+            speed[off] = 0.0
             self.pos[:, :2] = self.base + (legs.direction * offset[..., None]).sum(axis=1)
             self.vel[:, :2] = (legs.direction * speed[..., None]).sum(axis=1)
             single = legs.on.sum(axis=1) == 1
             ready = self.has_next & ~self.blending & single & (slowing & legs.on).any(axis=1)
-            for vehicle in np.flatnonzero(ready):
-                self._maybe_blend(int(vehicle))
+            if ready.any():
+                for vehicle in np.flatnonzero(ready):
+                    self._maybe_blend(int(vehicle))
         else:
             self.vel[:, :2] = 0.0
-        idle = ~legs.on.any(axis=1)
-        away = _distance(self.target[:, :2] - self.pos[:, :2]) > AT_TARGET_M
-        for i in np.flatnonzero(self.active & idle & away):
-            self.fly_leg(int(i), self.pos[i, :2], 0.0)  # overshot or braked first: go there now
+        idle = self.active & ~legs.on.any(axis=1)
+        if idle.any():
+            away = _distance(self.target[:, :2] - self.pos[:, :2]) > AT_TARGET_M
+            for i in np.flatnonzero(idle & away):
+                self.fly_leg(int(i), self.pos[i, :2], 0.0)  # overshot or braked: go there now
 
     def _maybe_blend(self, i: int) -> None:
         """Start the next leg now if ArduCopter would (SCurve's fast-waypoint test): this
@@ -168,8 +178,9 @@ class PointMassFleet:
     def _arrived(self) -> np.ndarray:
         at_rest = ~self.legs.on.any(axis=1)
         at_rest &= _distance(self.target[:, :2] - self.pos[:, :2]) <= self.radius
-        for i in np.flatnonzero(self.blending):
-            at_rest[i] = self._half_way_round(int(i))
+        if self.blending.any():
+            for i in np.flatnonzero(self.blending):
+                at_rest[i] = self._half_way_round(int(i))
         vertical = np.abs(self.target[:, 2] - self.pos[:, 2]) < VERTICAL_TOLERANCE
         return self.active & at_rest & vertical
 

@@ -215,7 +215,8 @@ class Vehicle:
             self._handle(msg, via, now)
         for data in outbound:
             self._transmit(data)
-        self.store.tick(self._wall())
+        if self.store.uploading:  # the clock read only then: this runs at every step
+            self.store.tick(self._wall())
         self.notices.flush(now)
         self._watch_arming()
         self._send_due_telemetry(now)
