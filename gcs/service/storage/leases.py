@@ -14,13 +14,53 @@ from __future__ import annotations
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
-from sqlalchemy import select, update
+from sqlalchemy import bindparam, select, update
 
 from gcs.service.states import OPEN, JobState
 from gcs.service.storage.database import Database, rowcount, unheld
 from gcs.service.storage.tables import FlightRow, JobRow, now
 
 UNFINISHED_JOBS = (JobState.QUEUED.value, JobState.RUNNING.value)
+INTERRUPTED_JOB = "the service that ran it stopped"
+
+# What every service runs once a `renew_s` for as long as it lives, built once: on the
+# tables (no ORM session to bring up to date), the holder and the times as parameters.
+_FLIGHTS = FlightRow.metadata.tables[FlightRow.__tablename__]
+_JOBS = JobRow.metadata.tables[JobRow.__tablename__]
+_OPEN = sorted(OPEN)
+_MINE = _FLIGHTS.c.owner_id == bindparam("holder")
+_RENEW_FLIGHTS = (
+    update(_FLIGHTS)
+    .where(_MINE, _FLIGHTS.c.state.in_(_OPEN))
+    .values(lease_expires_at=bindparam("until"))
+)
+_RENEW_JOBS = (
+    update(_JOBS)
+    .where(_JOBS.c.owner_id == bindparam("holder"), _JOBS.c.state.in_(UNFINISHED_JOBS))
+    .values(lease_expires_at=bindparam("until"))
+)
+_HELD = select(_FLIGHTS.c.id).where(_MINE, _FLIGHTS.c.state.in_(_OPEN))
+_INTERRUPT_ORPHAN_JOBS = (
+    update(_JOBS)
+    .where(
+        _JOBS.c.state.in_(UNFINISHED_JOBS),
+        _JOBS.c.owner_id != bindparam("holder"),
+        _JOBS.c.lease_expires_at < bindparam("now"),
+    )
+    .values(
+        state=JobState.INTERRUPTED.value, error=INTERRUPTED_JOB, updated_at=bindparam("updated")
+    )
+)
+_ORPHANS = (
+    select(FlightRow)
+    .where(
+        FlightRow.state.in_(_OPEN),
+        FlightRow.owner_id.is_not(None),
+        FlightRow.owner_id != bindparam("holder"),
+        FlightRow.lease_expires_at < bindparam("now"),
+    )
+    .order_by(FlightRow.created_at)
+)
 
 
 @dataclass(frozen=True)
@@ -71,13 +111,7 @@ class LeaseRepository:
 
     def _orphans(self) -> list[FlightRow]:
         with self.db.session() as s:
-            query = select(FlightRow).where(
-                FlightRow.state.in_(sorted(OPEN)),
-                FlightRow.owner_id.is_not(None),
-                FlightRow.owner_id != self.holder.id,
-                FlightRow.lease_expires_at < now(),
-            )
-            return list(s.scalars(query.order_by(FlightRow.created_at)))
+            return list(s.scalars(_ORPHANS, {"holder": self.holder.id, "now": now()}))
 
     async def release(self) -> None:
         """Let every flight this service holds go at once (a clean stop): another service
@@ -118,21 +152,8 @@ class LeaseRepository:
 
     def _interrupt_orphan_jobs(self) -> int:
         with self.db.session() as s:
-            return rowcount(
-                s.execute(
-                    update(JobRow)
-                    .where(
-                        JobRow.state.in_(UNFINISHED_JOBS),
-                        JobRow.owner_id != self.holder.id,
-                        JobRow.lease_expires_at < now(),
-                    )
-                    .values(
-                        state=JobState.INTERRUPTED.value,
-                        error="the service that ran it stopped",
-                        updated_at=now(),
-                    )
-                )
-            )
+            values = {"holder": self.holder.id, "now": now(), "updated": now()}
+            return rowcount(s.execute(_INTERRUPT_ORPHAN_JOBS, values))
 
     # --- both --------------------------------------------------------------------------------
 
@@ -141,23 +162,11 @@ class LeaseRepository:
         return await self.db.run(self._renew)
 
     def _renew(self) -> Renewal:
-        until = self._until()
+        values = {"holder": self.holder.id, "until": self._until()}
         with self.db.session() as s:
-            mine = FlightRow.owner_id == self.holder.id
-            s.execute(
-                update(FlightRow)
-                .where(mine, FlightRow.state.in_(sorted(OPEN)))
-                .values(lease_expires_at=until)
-            )
-            jobs = rowcount(
-                s.execute(
-                    update(JobRow)
-                    .where(JobRow.owner_id == self.holder.id, JobRow.state.in_(UNFINISHED_JOBS))
-                    .values(lease_expires_at=until)
-                )
-            )
-            held = s.scalars(select(FlightRow.id).where(mine, FlightRow.state.in_(sorted(OPEN))))
-            return Renewal(frozenset(held), jobs)
+            s.execute(_RENEW_FLIGHTS, values)
+            jobs = rowcount(s.execute(_RENEW_JOBS, values))
+            return Renewal(frozenset(s.scalars(_HELD, values)), jobs)
 
     async def holder_of(self, flight_id: str) -> tuple[Holder | None, bool]:
         """Who holds the flight, and whether their lease is still running."""
