@@ -13,7 +13,7 @@ from tests.fuzz.runner import fly_seed
 
 pytestmark = [pytest.mark.slow, pytest.mark.fuzz]
 
-FLIGHTS = int(os.environ.get("FUZZ_FLIGHTS", "24"))
+FLIGHTS = int(os.environ.get("FUZZ_FLIGHTS", "28"))
 FIRST = int(os.environ.get("FUZZ_FIRST_SEED", "1000"))
 
 
