@@ -2,7 +2,9 @@
 (`space_time.goal_distances`), not the octile distance that ignores them. It is admissible
 (never above the true distance), kept per grid and goal, and it lets a search behind a
 wall finish within the expansions the octile one spends in vain; a search that still runs
-out of its limit leaves the UAV to the rest of the safe start, and the plan stays safe."""
+out of its limit leaves the UAV to the rest of the safe start, and the plan stays safe.
+Before a UAV searches, the UAVs it meets try hovering out of its way (`make_way`); a path
+it found is pulled whole and in pieces (`pulled_in_pieces`)."""
 
 from __future__ import annotations
 
@@ -14,12 +16,15 @@ import pytest
 
 from planner.check.safety import check_plan, closest_approach
 from planner.experiments.scenario_generator import gap_swap_scenario
-from planner.flows import anytime
+from planner.flows import anytime, lone_paths
+from planner.flows.engine import Engine
+from planner.flows.planning import Map
 from planner.geometry.grid_search import GridGraph
 from planner.model.scenario import UAVSpec
 from planner.model.trajectory import Trajectory
 from planner.pipeline import PlannerSettings, plan
 from planner.search import space_time
+from planner.search.any_angle import pull_string
 from planner.search.sipp import Mover
 from planner.search.space_time import Flight, Search, SearchLimits
 
@@ -87,7 +92,7 @@ def test_behind_a_wall_it_finishes_where_the_octile_search_runs_out(
     assert check_plan({"a": flight}, {"a": 0.3}, ~free).safe
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [1, 3, 6])  # seeds where a search runs
 def test_a_search_out_of_expansions_leaves_the_plan_safe(
     monkeypatch: pytest.MonkeyPatch, expansions: list[int], seed: int
 ) -> None:
@@ -104,3 +109,45 @@ def test_a_search_out_of_expansions_leaves_the_plan_safe(
     paths = {u.id: Trajectory(np.array(u.trajectory)) for u in result.uavs}
     radii = {u.id: u.radius for u in scenario.uavs}
     assert check_plan(paths, radii, scenario.blocked(), scenario.object_cells()).safe
+
+
+def test_the_other_side_of_a_head_on_meeting_hovers_first(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Corridor swaps (seed 0), every trip taken as long (`LONG_TRIP` 0): a UAV that
+    cannot wait out its meeting lets the UAVs it meets hover along their own paths
+    (`make_way`) before it searches; the plan is safe."""
+    monkeypatch.setattr(anytime, "LONG_TRIP", 0.0)
+    made_way: list[bool] = []
+    real = anytime.make_way
+
+    def spied(engine: Engine, uav: str, world: Map) -> bool:
+        made_way.append(real(engine, uav, world))
+        return made_way[-1]
+
+    monkeypatch.setattr(anytime, "make_way", spied)
+    scenario = gap_swap_scenario(0)
+    result = plan(scenario, PlannerSettings(seed=0, time_budget_s=None))
+    assert any(made_way)
+    assert result.feasible
+    paths = {u.id: Trajectory(np.array(u.trajectory)) for u in result.uavs}
+    radii = {u.id: u.radius for u in scenario.uavs}
+    assert check_plan(paths, radii, scenario.blocked(), scenario.object_cells()).safe
+
+
+def test_a_path_pulled_in_pieces_keeps_its_cuts_and_is_never_longer() -> None:
+    free = _walled()
+    spec = UAVSpec(id="a", start=(2, 3), goal=(18, 3))
+    flight = space_time.search(spec, free, [])
+    assert flight is not None
+    geometry = lone_paths.geometry_of(flight)
+    length = Trajectory.from_waypoints(geometry, 1.0).length
+    whole = anytime.pulled_in_pieces(geometry, 1, 0.3, ~free)
+    assert np.array_equal(whole, pull_string(geometry, 0.3, ~free))
+    for pieces in (2, 3, len(geometry) - 1):
+        pulled = anytime.pulled_in_pieces(geometry, pieces, 0.3, ~free)
+        cuts = np.linspace(0, len(geometry) - 1, pieces + 1).round().astype(int)
+        assert all((geometry[c] == pulled).all(axis=1).any() for c in cuts)
+        assert (
+            Trajectory.from_waypoints(whole, 1.0).length - 1e-9
+            <= (Trajectory.from_waypoints(pulled, 1.0).length)
+            <= length + 1e-9
+        )
