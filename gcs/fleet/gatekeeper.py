@@ -135,6 +135,18 @@ class GateCommander:
         self.applied[uav_id] = self._wanted[uav_id] = Gate.STOP
         self._slowed[uav_id] = math.nan  # equal to no speed: always commanded afresh
 
+    async def stand_down(self, uav_ids: Iterable[str]) -> None:
+        """The operator takes these vehicles (a hold, a landing, a return, an abort): a
+        change under way is given up before the operator's command goes out, so that
+        none of its commands (a resume, AUTO after a brake) lands after the operator's
+        and undoes it."""
+        tasks = [task for uav in uav_ids if (task := self._tasks.pop(uav, None)) is not None]
+        for task in tasks:
+            task.cancel()
+        for task in tasks:
+            with contextlib.suppress(asyncio.CancelledError, GcsError):
+                await task
+
     async def _bring(self, uav_id: str) -> None:
         while self.applied[uav_id] != self._wanted[uav_id]:
             target = self._wanted[uav_id]
@@ -160,8 +172,4 @@ class GateCommander:
             await actions.resume_mission()
 
     async def close(self) -> None:
-        for task in self._tasks.values():
-            task.cancel()
-        for task in self._tasks.values():
-            with contextlib.suppress(asyncio.CancelledError, GcsError):
-                await task
+        await self.stand_down(list(self._tasks))

@@ -21,6 +21,7 @@ async def hold(crew: Crew, uav_ids: Iterable[str] | None = None) -> dict[str, Ve
     chosen = set(crew.members if uav_ids is None else uav_ids)
     crew.held |= chosen
     crew.bus.publish(OperatorHeld(tuple(sorted(chosen))))
+    await crew.commander.stand_down(chosen)
     outcomes = await crew.each(lambda m: m.actions.hold(crew.started), "hold", chosen)
     for uav in chosen:
         crew.commander.settle(uav, Gate.STOP)
@@ -76,6 +77,7 @@ async def fall_back(
     crew: Crew, uav_ids: Iterable[str], fallback: Fallback
 ) -> dict[str, VehicleOutcome[None]]:
     chosen = list(uav_ids)
+    await crew.commander.stand_down(chosen)
     if fallback == Fallback.HOLD:
         outcomes = await crew.each(lambda m: m.actions.hold(crew.started), "hold", chosen)
         return {uav: VehicleOutcome(uav, o.ok, o.detail) for uav, o in outcomes.items()}
