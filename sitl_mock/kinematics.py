@@ -364,9 +364,14 @@ class Body:
         f.climb[i], f.descent[i] = limits.climb_rate, limits.descent_rate
         f.vertical_accel[i] = limits.vertical_accel
 
-    def set_cruise(self, speed: float) -> None:
+    @property
+    def cruise(self) -> float:
+        return float(self._fleet.cruise[self.index])
+
+    def set_cruise(self, speed: float, quick: bool = False) -> None:
         """A new speed for the leg being flown (a leg already slowing down finishes) and
-        the one planned after it."""
+        the one planned after it; `quick`: changed at the stopping jerk, as a resumed
+        pause's track speed is."""
         f, i = self._fleet, self.index
         f.cruise[i] = speed
         legs, k = f.legs, int(f.legs.newest()[i])
@@ -374,7 +379,8 @@ class Body:
             offset, leg_speed, _, _ = legs.evaluate(f.time)
             remaining = legs.length[i, k] - offset[i, k]
             limits = (speed, f.accel[i], f.jerk[i])
-            profile = leg_profile(remaining, leg_speed[i, k], *limits)
+            up = f.stop_jerk[i] if quick else None
+            profile = leg_profile(remaining, leg_speed[i, k], *limits, up)
             legs.add(i, f.time, legs.direction[i, k].copy(), profile, k, offset[i, k])
         following = f.next_leg[i]
         if following is not None and not f.blending[i]:

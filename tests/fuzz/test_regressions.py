@@ -21,6 +21,8 @@ FOUND = {
     25: "the object stored for a live replan was not the object the operator was told of",
     28: "LAND during lift-off left the mock climbing for ever",
     38: "an abort did not reach the vehicles that came back online after a restart",
+    2079: "a hold sent while the passing order resumed a vehicle was undone by that resume "
+    "(once the mock resumed at the paused speed, as ArduCopter does: 0.73 m apart)",
 }
 
 

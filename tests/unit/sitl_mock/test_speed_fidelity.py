@@ -360,6 +360,42 @@ def test_a_resumed_pause_picks_its_speed_up_faster_than_a_start_from_rest(
     assert np.diff([s.north for s in go.resumed]).min() >= 0.0  # on along the leg, no back
 
 
+SITL_APPROACH = {1.0: 2.28, 2.0: 4.86, 4.0: 1.49, 6.0: 1.00}
+"""Paused at 5 m/s, standing, DO_CHANGE_SPEED 1 m/s then DO_PAUSE_CONTINUE 1: the speed
+that many seconds after the resume (bench/results/approach_vs_sitl.md)."""
+SITL_APPROACH_6S_M = 13.1
+"""How far it went in those 6 s."""
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_an_approach_asked_for_while_paused_first_resumes_at_the_paused_speed(
+    autopilot: str,
+) -> None:
+    """What the passing order's approach does (gcs.fleet.gatekeeper: a stopped vehicle is
+    given a slow speed and resumed). SITL goes back up to the speed its track had when
+    paused (4.86 m/s 2 s after the resume) and only then slows to the 1 m/s asked for:
+    13.1 m in 6 s where 1 m/s would be 6. Mock: 1.85 / 4.35 / 1.37 / 1.00 m/s after 1, 2,
+    4 and 6 s, 13.0 m. PX4 goes on at the speed asked for."""
+    v = 5.0
+    flight = Flight(autopilot, [takeoff_item(), speed_item(v), waypoint(0.0, 40 * v)])
+    flight.hover()
+    assert flight.mode("AUTO") == ACCEPTED
+    flight.fly_until(lambda s: s.north >= 10 * v, limit_s=30.0)
+    halt(flight, lambda: flight.command(mavlink.MAV_CMD_DO_PAUSE_CONTINUE, PAUSE))
+    assert flight.command(mavlink.MAV_CMD_DO_CHANGE_SPEED, 1, 1.0, -1) == ACCEPTED
+    start = flight.now
+    assert flight.command(mavlink.MAV_CMD_DO_PAUSE_CONTINUE, GO) == ACCEPTED
+    resumed = flight.fly(6.0)
+    speed = {round(s.t - start.t, 2): s.speed for s in resumed}
+    went = resumed[-1].north - start.north
+    if autopilot == "px4":
+        assert max(speed.values()) <= 1.0 + 1e-6 and went < 6.0
+        return
+    assert max(speed.values()) >= 0.8 * v  # back up to the paused track's speed
+    assert speed[6.0] == pytest.approx(SITL_APPROACH[6.0], abs=0.1)  # then the one asked for
+    assert sitl(SITL_APPROACH_6S_M)[0] <= went <= sitl(SITL_APPROACH_6S_M)[1]
+
+
 def test_brake_stops_as_far_as_on_sitl(stop_and_go: StopAndGo):
     """SITL, BRAKE at 4.97 and 10.01 m/s: standstill after 8.68 m and 20.06 m (BRAKE's
     deceleration asked in proportion to the speed, ramped at PSC_JERK_NE). Mock: 9.08 m
