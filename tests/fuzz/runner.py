@@ -173,6 +173,7 @@ class Flight:
         self.service = InProcessService(data_dir, self.vehicles)
         self.flight_id = ""
         self.sent_home: set[int] = set()
+        self.sent_away: set[int] = set()  # landed or sent home one by one by the operator
         self.held: set[int] = set()  # held one by one by the operator, not continued yet
         self.live: list[dict[str, Any]] = []
         self.due: list[_Due] = []  # effects of commands, not seen yet
@@ -291,6 +292,8 @@ class Flight:
             answer = await self._call("post", f"/vehicles/{vehicle}/{action.kind}")
             if action.kind == "rtl" and answer.status_code == 200:
                 self.sent_home.add(action.uav)
+            if action.kind in ("land", "rtl") and answer.status_code == 200:
+                self.sent_away.add(action.uav)
             if answer.status_code == 200:
                 (self.held.add if action.kind == "hold" else self.held.discard)(action.uav)
             self._check_answers(
@@ -365,10 +368,12 @@ class Flight:
 
     def _check_landings(self, scenario: Scenario) -> None:
         """A `landed` flight has every vehicle down within the waypoint radius of its goal
-        (by the simulator's truth)."""
+        (by the simulator's truth), but those the operator landed or sent home itself."""
         assert self.sim is not None
         frame = GridFrame.of(scenario)
         for sysid, uav in zip(self.sim.sysids, scenario.uavs, strict=True):
+            if sysid in self.sent_away:
+                continue
             state = self.sim.state(sysid)
             lat, lon = frame.to_geodetic(*uav.goal)
             miss = distance_m(state.lat, state.lon, float(lat), float(lon))
