@@ -38,14 +38,11 @@ import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from unittest import mock
 
 from bench.planner_scale import LACAM, Family, load, run_family
-from planner.experiments import fleet_bench
 from planner.experiments.fleet_tables import OURS, Row, write_csv
 from planner.experiments.machine import describe_machine
 from planner.model.scenario import Scenario, load_scenario
-from planner.pipeline import PlannerSettings
 
 MAPS_DIR = Path(__file__).parent / "maps" / "movingai"
 MAPS = ["random-32-32-10", "room-32-32-4", "maze-32-32-2"]
@@ -200,9 +197,7 @@ def main() -> None:
             build = functools.partial(scenario_for_seed, map_name, agents)
             family = Family(name, build, dense=True)
             before = load()
-            limited = functools.partial(PlannerSettings, safe_start_limit_s=args.limit)
-            with mock.patch.object(fleet_bench, "PlannerSettings", limited):
-                done = run_family(family, 1, args.budget, pp=True)
+            done = run_family(family, 1, args.budget, pp=True, safe_start_limit_s=args.limit)
             rows += done
             loads.append(f"{name}: {before:.2f} / {load():.2f}")
             ours = next(r for r in done if r.planner == OURS)

@@ -106,12 +106,16 @@ def load() -> float:
     return os.getloadavg()[0]
 
 
-def run_family(family: Family, seeds: int, budget: float, pp: bool) -> list[Row]:
+def run_family(
+    family: Family, seeds: int, budget: float, pp: bool, safe_start_limit_s: float | None = None
+) -> list[Row]:
+    """Ours, LaCAM and (with `pp`) PP on each seed; `safe_start_limit_s` bounds our safe
+    start (None: it runs to its end, the product's default)."""
     rows: list[Row] = []
     for seed in range(seeds):
         scenario = family.build(seed)
         runs: list[Callable[[], Row]] = [
-            functools.partial(run_ours, scenario, seed, budget),
+            functools.partial(run_ours, scenario, seed, budget, safe_start_limit_s),
             functools.partial(
                 run_reference, scenario, seed, functools.partial(plan_lacam, time_limit=budget)
             ),

@@ -89,9 +89,14 @@ FAMILIES = [
 ]
 
 
-def run_ours(scenario: Scenario, seed: int, budget: float) -> Row:
+def run_ours(
+    scenario: Scenario, seed: int, budget: float, safe_start_limit_s: float | None = None
+) -> Row:
     started = time.perf_counter()
-    result = plan(scenario, PlannerSettings(seed=seed, time_budget_s=budget))
+    settings = PlannerSettings(
+        seed=seed, time_budget_s=budget, safe_start_limit_s=safe_start_limit_s
+    )
+    result = plan(scenario, settings)
     seconds = time.perf_counter() - started
     paths = {u.id: Trajectory(np.array(u.trajectory)) for u in result.uavs}
     verdict = judge(scenario, ReferenceResult(OURS, paths, True, seconds))
