@@ -54,6 +54,9 @@ _EFFECTS = {
 mode, or "stopped" (told to hold where it is, or down); unless a later command to it came
 first."""
 ANSWER_WITHIN_S = 1.0
+HELD_DRIFT_M = 2.0
+"""How far a vehicle held by the operator may move once it stands (it hovers in place)."""
+STANDING_M_S = 0.1
 ARRIVED_M = 1.0  # within this of its goal, a vehicle has arrived
 GOAL_RADIUS_M = 2.0  # ArduCopter's WP_RADIUS_M: a mission's goal is reached within it
 WATCH_EVERY_S = 0.1
@@ -177,6 +180,8 @@ class Flight:
         self.held: set[int] = set()  # held one by one by the operator, not continued yet
         self.live: list[dict[str, Any]] = []
         self.due: list[_Due] = []  # effects of commands, not seen yet
+        self.stopped_by: dict[int, Action] = {}  # held vehicles, by the hold that stopped them
+        self.standing_at: dict[int, tuple[float, float]] = {}  # where each came to stand
         self.arrived: dict[int, float] = {}  # sysid: loop time over its goal
         self._sent_at = 0.0
 
@@ -338,6 +343,9 @@ class Flight:
     def _supersede(self, action: Action) -> None:
         """A new command to a vehicle replaces what the last one was to do there."""
         self.due = [d for d in self.due if action.uav is not None and d.sysid != action.uav]
+        for held in [u for u in self.stopped_by if action.uav is None or u == action.uav]:
+            del self.stopped_by[held]
+            self.standing_at.pop(held, None)
 
     def _check_effects(self) -> None:
         """Each command's effect seen on each vehicle it reached, or a violation once due."""
@@ -348,6 +356,8 @@ class Flight:
             state = self.sim.state(due.sysid)
             stopped = state.holding or not state.armed or state.alt < 0.5
             if state.mode in due.expected or (stopped and "stopped" in due.expected):
+                if due.action.kind in ("pause", "hold") and state.armed:
+                    self.stopped_by[due.sysid] = due.action
                 continue
             if now >= due.at:
                 self.report.violations.append(
@@ -462,7 +472,29 @@ class Flight:
                         f"{asyncio.get_running_loop().time():.1f} s"
                     )
             self._check_effects()
+            self._check_held_still()
             await asyncio.sleep(WATCH_EVERY_S)
+
+    def _check_held_still(self) -> None:
+        """A vehicle the operator held stays where it came to stand until the operator's
+        next command to it (or to the fleet): nothing else may move it on."""
+        assert self.sim is not None
+        for sysid, action in list(self.stopped_by.items()):
+            state = self.sim.state(sysid)
+            if not state.armed or state.mode in ("LAND", "RTL"):
+                continue
+            east, north, _ = self.sim.local_positions()[sysid]
+            standing = self.standing_at.get(sysid)
+            if standing is None:
+                if math.hypot(*self.sim.vehicle(sysid).flight.body.velocity[:2]) < STANDING_M_S:
+                    self.standing_at[sysid] = (east, north)
+                continue
+            drift = math.hypot(east - standing[0], north - standing[1])
+            if drift > HELD_DRIFT_M:
+                self.report.violations.append(
+                    f"{action.describe()}: uav{sysid} moved {drift:.1f} m while held"
+                )
+                del self.stopped_by[sysid]
 
     def _note_arrivals(self, goals: dict[int, tuple[float, float]]) -> None:
         """When each vehicle first comes within ARRIVED_M of its goal (the simulator's truth)."""
