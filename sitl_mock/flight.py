@@ -37,9 +37,9 @@ DENIED: int = mavlink.MAV_RESULT_DENIED
 AIRBORNE_ABOVE_M = 0.5
 NOT_ARMABLE = frozenset({FlightMode.AUTO, FlightMode.RTL, FlightMode.LAND})
 RALLY_LIMIT_M = 300.0
+"""ArduCopter's RALLY_LIMIT_KM default: a nearest rally point further away is not used."""
 SURGE_REACHED_M_S = 0.1
 """A track resumed at its paused speed is there this close to it (then it slows)."""
-"""ArduCopter's RALLY_LIMIT_KM default: a nearest rally point further away is not used."""
 USER_TAKEOFF_MODES = frozenset({FlightMode.GUIDED, FlightMode.LOITER})
 """ArduCopter modes in which a NAV_TAKEOFF command is obeyed."""
 
