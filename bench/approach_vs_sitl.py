@@ -18,15 +18,19 @@ from __future__ import annotations
 
 import argparse
 import math
-import subprocess
-import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 import pymap3d
-from mock_vs_sitl import HOME, _command_until_accepted, upload_items
+from mock_vs_sitl import (
+    HOME,
+    MOCK_URL,
+    SITL_URL,
+    _command_until_accepted,
+    sitl_and_mock,
+    upload_items,
+)
 from pymavlink import mavutil
 
 MAV = mavutil.mavlink
@@ -143,28 +147,10 @@ def main() -> int:
     parser.add_argument("--variant", choices=VARIANTS, default="at-resume")
     parser.add_argument("--only-sitl", action="store_true", help="leave the mock out")
     args = parser.parse_args()
-    defaults = args.sitl.parents[3] / "Tools/autotest/default_params/copter.parm"
-    home = ",".join(f"{v}" for v in HOME)
-    with tempfile.TemporaryDirectory() as workdir:
-        sitl = subprocess.Popen(
-            [str(args.sitl), "--model", "+", "--speedup", f"{args.speedup:g}",
-             "--defaults", str(defaults), "-I0", "--sysid", "1", "--home", f"{home},0"],
-            cwd=workdir, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )  # fmt: skip
-        mock = subprocess.Popen(
-            [sys.executable, "-m", "sitl_mock", "--base-port", "5900",
-             "--speedup", f"{args.speedup:g}", f"--home={home}"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )  # fmt: skip
-        try:
-            time.sleep(2.0)  # both servers listening
-            rows = {"ArduCopter SITL": describe(*fly("tcp:127.0.0.1:5760", args.variant))}
-            if not args.only_sitl:
-                rows["sitl_mock"] = describe(*fly("tcp:127.0.0.1:5900", args.variant))
-        finally:
-            for process in (sitl, mock):
-                process.terminate()
-                process.wait(timeout=10)
+    with sitl_and_mock(args.sitl, args.speedup):
+        rows = {"ArduCopter SITL": describe(*fly(SITL_URL, args.variant))}
+        if not args.only_sitl:
+            rows["sitl_mock"] = describe(*fly(MOCK_URL, args.variant))
     names = list(rows)
     print(f"variant {args.variant}: {VARIANTS[args.variant]}")
     print("speed 1 / 2 / 4 / 6 s after the command; distance until the next command")

@@ -15,11 +15,13 @@ Both vehicles run at `--speedup` (default 2) on loopback TCP ports 5760 (SITL) a
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -175,32 +177,43 @@ def summary(flight: Flight) -> dict[str, float]:
     }
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sitl", type=Path, required=True, help="ArduCopter SITL binary")
-    parser.add_argument("--speedup", type=float, default=2.0)
-    args = parser.parse_args()
-    defaults = args.sitl.parents[3] / "Tools/autotest/default_params/copter.parm"
+SITL_URL, MOCK_URL = "tcp:127.0.0.1:5760", "tcp:127.0.0.1:5900"
+
+
+@contextlib.contextmanager
+def sitl_and_mock(sitl_binary: Path, speedup: float) -> Iterator[None]:
+    """One ArduCopter SITL (`SITL_URL`) and one mock vehicle (`MOCK_URL`) at `speedup`,
+    both at HOME, stopped by their process ids on the way out."""
+    defaults = sitl_binary.parents[3] / "Tools/autotest/default_params/copter.parm"
     home = ",".join(f"{v}" for v in HOME)
     with tempfile.TemporaryDirectory() as workdir:
         sitl = subprocess.Popen(
-            [str(args.sitl), "--model", "+", "--speedup", f"{args.speedup:g}",
+            [str(sitl_binary), "--model", "+", "--speedup", f"{speedup:g}",
              "--defaults", str(defaults), "-I0", "--sysid", "1", "--home", f"{home},0"],
             cwd=workdir, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         )  # fmt: skip
         mock = subprocess.Popen(
             [sys.executable, "-m", "sitl_mock", "--base-port", "5900",
-             "--speedup", f"{args.speedup:g}", f"--home={home}"],
+             "--speedup", f"{speedup:g}", f"--home={home}"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         )  # fmt: skip
         try:
             time.sleep(2.0)  # both servers listening
-            rows = {"ArduCopter SITL": summary(fly("tcp:127.0.0.1:5760"))}
-            rows["sitl_mock"] = summary(fly("tcp:127.0.0.1:5900"))
+            yield
         finally:
             for process in (sitl, mock):
                 process.terminate()
                 process.wait(timeout=10)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sitl", type=Path, required=True, help="ArduCopter SITL binary")
+    parser.add_argument("--speedup", type=float, default=2.0)
+    args = parser.parse_args()
+    with sitl_and_mock(args.sitl, args.speedup):
+        rows = {"ArduCopter SITL": summary(fly(SITL_URL))}
+        rows["sitl_mock"] = summary(fly(MOCK_URL))
     names = list(rows)
     print("| measure | " + " | ".join(names) + " |")
     print("| --- |" + " ---: |" * len(names))
