@@ -1,0 +1,66 @@
+"""The passing order's commands to one vehicle against the operator's (gcs.fleet.gatekeeper):
+an approach under way must not land after the operator's hold and undo it.
+
+Fuzzed flight 2079 found it (tests/fuzz/test_regressions.py): the order had just sent a
+vehicle its approach speed and was about to resume it when the operator held the fleet;
+on a slow link the resume went out after the hold's pause, and the vehicle flew on while
+held. Here the vehicle's link is a recorder whose first command is slow, on the event
+loop, so that the race happens every time."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import cast
+
+from gcs.fleet.gatekeeper import GateCommander
+from gcs.mavlink.actions import FlightActions
+from gcs.mission.motion import Gate, StoppingRule
+
+
+class SlowLink:
+    """What a vehicle was sent, in order; the first command waits for `released`."""
+
+    def __init__(self) -> None:
+        self.sent: list[str] = []
+        self.released = asyncio.Event()
+
+    async def _send(self, what: str) -> None:
+        if not self.sent:
+            await self.released.wait()
+        self.sent.append(what)
+
+    async def change_speed(self, speed_m_s: float) -> None:
+        await self._send(f"speed {speed_m_s:g}")
+
+    async def resume_mission(self) -> None:
+        await self._send("resume")
+
+    async def pause_mission(self) -> str:
+        await self._send("pause")
+        return "mission paused"
+
+
+async def test_the_operators_hold_is_not_undone_by_an_approach_under_way() -> None:
+    link = SlowLink()
+    failures: list[str] = []
+    commander = GateCommander(
+        {"uav1": cast(FlightActions, link)},
+        StoppingRule(),
+        cruise=lambda uav: 5.0,
+        on_failure=lambda uav, why: failures.append(why),
+    )
+    commander.found_stopped("uav1")  # stopped by the order, waiting for another
+    commander.want("uav1", Gate.CREEP, 1.0)  # the way opens: approach at 1 m/s
+    await asyncio.sleep(0)  # its speed is on the way, slowly
+
+    await commander.stand_down(["uav1"])  # the operator holds it ...
+    hold = asyncio.ensure_future(link.pause_mission())  # ... and pauses it
+    link.released.set()
+    await hold
+    for _ in range(10):  # anything the order still had to send has gone by now
+        await asyncio.sleep(0)
+    commander.settle("uav1", Gate.STOP)
+
+    assert link.sent == ["pause"], link.sent
+    assert failures == []
+    await commander.close()
