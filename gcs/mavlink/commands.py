@@ -16,8 +16,9 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs.mavlink.errors import CommandTimeoutError, WaitTimeoutError, command_error
+from gcs.mavlink.errors import CommandTimeoutError, GcsError, WaitTimeoutError, command_error
 from gcs.mavlink.link import VehicleLink
+from gcs.mavlink.subscription import Subscription
 
 STATUSTEXT_GRACE_S = 0.15  # a failure's explanation may trail its ACK
 
@@ -88,23 +89,56 @@ async def send_command_int(
 async def _exchange(
     link: VehicleLink, command: int, encode: Any, policy: CommandPolicy
 ) -> CommandAck:
-    link.ensure_up()  # a vehicle not heard lately: fail now, do not wait out every retry
-    with link.subscribe(["COMMAND_ACK", "STATUSTEXT"]) as sub:
-        for attempt in range(policy.retries + 1):
-            texts: list[str] = []  # what the vehicle said about this attempt
-            link.send(encode(attempt))
-            try:
-                ack = await _await_ack(sub, command, policy.timeout_s, texts)
-            except WaitTimeoutError:
-                continue
-            if ack.result == mavlink2.MAV_RESULT_IN_PROGRESS:
-                ack = await _await_final_ack(link, sub, command, policy, texts)
-            if ack.result == mavlink2.MAV_RESULT_ACCEPTED:
-                return CommandAck(command, ack.result, attempt + 1, "; ".join(texts))
-            await _collect_trailing_texts(sub, texts)
-            error = command_error(link.sysid, command, ack.result, "; ".join(texts))
-            error.attempts = attempt + 1
-            raise error
+    """One command's attempts, alone on the link among commands of its number, which
+    wait until the answers to its earlier attempts are in too (they can come after the
+    one that ended it: the ACK of a re-sent attempt). A COMMAND_ACK names only the
+    command's number, so an answer left on the wire would end the next command of that
+    number (seen: the late ACK of an operator's re-sent RTL taken for the abort's LAND,
+    which was lost and never sent again). Other commands go at once, and so does the
+    caller: the late answers are awaited apart from it."""
+    turn = link.command_turn(command)
+    await turn.acquire()
+    tally = _Tally()
+    sub = link.subscribe(["COMMAND_ACK", "STATUSTEXT"])
+    try:
+        link.ensure_up()  # a vehicle not heard lately: fail now, do not wait out every retry
+        return await _attempts(link, sub, command, encode, policy, tally)
+    finally:
+        if tally.answered < tally.sent and not link.closed:
+            link.spawn(_late_answers(sub, command, tally, policy.timeout_s, turn))
+        else:
+            sub.close()
+            turn.release()
+
+
+@dataclass
+class _Tally:
+    """Attempts sent and final answers received (an IN_PROGRESS is not one)."""
+
+    sent: int = 0
+    answered: int = 0
+    last_sent: float = 0.0
+
+
+async def _attempts(
+    link: VehicleLink, sub: Any, command: int, encode: Any, policy: CommandPolicy, tally: _Tally
+) -> CommandAck:
+    for attempt in range(policy.retries + 1):
+        texts: list[str] = []  # what the vehicle said about this attempt
+        link.send(encode(attempt))
+        tally.sent, tally.last_sent = tally.sent + 1, asyncio.get_running_loop().time()
+        try:
+            ack = await _await_ack(sub, command, policy.timeout_s, texts, tally)
+        except WaitTimeoutError:
+            continue
+        if ack.result == mavlink2.MAV_RESULT_IN_PROGRESS:
+            ack = await _await_final_ack(link, sub, command, policy, texts, tally)
+        if ack.result == mavlink2.MAV_RESULT_ACCEPTED:
+            return CommandAck(command, ack.result, attempt + 1, "; ".join(texts))
+        await _collect_trailing_texts(sub, texts)
+        error = command_error(link.sysid, command, ack.result, "; ".join(texts))
+        error.attempts = attempt + 1
+        raise error
     raise CommandTimeoutError(
         link.sysid,
         command,
@@ -114,7 +148,9 @@ async def _exchange(
     )
 
 
-async def _await_ack(sub: Any, command: int, timeout: float, texts: list[str]) -> Any:
+async def _await_ack(
+    sub: Any, command: int, timeout: float, texts: list[str], tally: _Tally
+) -> Any:
     loop = asyncio.get_running_loop()
     deadline = loop.time() + timeout
     while True:
@@ -122,18 +158,24 @@ async def _await_ack(sub: Any, command: int, timeout: float, texts: list[str]) -
         if msg.get_type() == "STATUSTEXT":
             texts.append(_text(msg))
         elif msg.command == command:
+            tally.answered += msg.result != mavlink2.MAV_RESULT_IN_PROGRESS
             return msg
 
 
 async def _await_final_ack(
-    link: VehicleLink, sub: Any, command: int, policy: CommandPolicy, texts: list[str]
+    link: VehicleLink,
+    sub: Any,
+    command: int,
+    policy: CommandPolicy,
+    texts: list[str],
+    tally: _Tally,
 ) -> Any:
     """After IN_PROGRESS: wait (without re-sending) for the ACK that ends the command."""
     loop = asyncio.get_running_loop()
     deadline = loop.time() + policy.in_progress_timeout_s
     try:
         while True:
-            ack = await _await_ack(sub, command, max(0.0, deadline - loop.time()), texts)
+            ack = await _await_ack(sub, command, max(0.0, deadline - loop.time()), texts, tally)
             if ack.result != mavlink2.MAV_RESULT_IN_PROGRESS:
                 return ack
     except WaitTimeoutError:
@@ -144,6 +186,22 @@ async def _await_final_ack(
             "; ".join(texts),
             detail=f"still in progress after {policy.in_progress_timeout_s:.1f} s",
         ) from None
+
+
+async def _late_answers(
+    sub: Subscription, command: int, tally: _Tally, timeout_s: float, turn: asyncio.Lock
+) -> None:
+    """Take the answers still owed to earlier attempts, until the last attempt's timeout
+    (one lost on the way is not waited for longer), then let the next command go."""
+    deadline = tally.last_sent + timeout_s
+    loop = asyncio.get_running_loop()
+    try:
+        with contextlib.suppress(GcsError):
+            while tally.answered < tally.sent and loop.time() < deadline:
+                await _await_ack(sub, command, deadline - loop.time(), [], tally)
+    finally:
+        sub.close()
+        turn.release()
 
 
 async def _collect_trailing_texts(sub: Any, texts: list[str]) -> None:

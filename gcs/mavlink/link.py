@@ -89,6 +89,7 @@ class VehicleLink:
         self.gap_began: float | None = None  # loop time the latest heartbeat gap began
         self.last_sent: float | None = None  # loop time we last sent the vehicle anything
         self.identity: VehicleIdentity | None = None  # what it reported (gcs.mavlink.identity)
+        self._command_turns: dict[int, asyncio.Lock] = {}
         self._received(heartbeat)
         connection.attach(self.sysid, self._received)
         self.spawn(self._watchdog())
@@ -103,6 +104,13 @@ class VehicleLink:
     def send(self, msg: Message) -> None:
         self.last_sent = self._loop.time()
         self.connection.send(msg, self.sysid)
+
+    def command_turn(self, command: int) -> asyncio.Lock:
+        """Held while a command of this number is under way: a COMMAND_ACK names only the
+        command's number, so two of one number at once (an operator's RTL still being
+        re-sent when the abort's LAND goes out, both DO_SET_MODE) would take each other's
+        ACK, and the lost one would never be sent again."""
+        return self._command_turns.setdefault(command, asyncio.Lock())
 
     # --- receiving ---------------------------------------------------------------------
 
@@ -223,6 +231,10 @@ class VehicleLink:
         """Raise LinkLostError now rather than wait on a link that is down."""
         if not self.state.link_up:
             raise LinkLostError(f"vehicle {self.sysid}: link is down")
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
 
     def spawn(self, coro: Coroutine[Any, Any, Any]) -> None:
         """Run `coro` for as long as the link lives (cancelled by `close`)."""

@@ -23,6 +23,8 @@ FOUND = {
     38: "an abort did not reach the vehicles that came back online after a restart",
     2079: "a hold sent while the passing order resumed a vehicle was undone by that resume "
     "(once the mock resumed at the paused speed, as ArduCopter does: 0.73 m apart)",
+    2140: "an abort's LAND, lost on the way, was taken as done on the late ACK of the "
+    "operator's re-sent RTL (both DO_SET_MODE): the vehicle stayed in RTL",
 }
 
 

@@ -117,6 +117,58 @@ async def test_an_unanswered_command_is_resent_with_its_confirmation_counted() -
         await link.close()
 
 
+class SlowModeChanges:
+    """Answers a DO_SET_MODE's first attempt after `first_s` and a re-sent one after
+    `again_s`, and loses the first attempt of a LAND."""
+
+    def __init__(self, first_s: float, again_s: float) -> None:
+        self.peer: Peer | None = None
+        self.first_s, self.again_s = first_s, again_s
+        self.answered: list[tuple[int, int]] = []  # (mode, confirmation)
+
+    def __call__(self, msg: Any) -> list[Any]:
+        if msg.get_type() != "COMMAND_LONG" or msg.command != mavlink2.MAV_CMD_DO_SET_MODE:
+            return []
+        mode = int(msg.param2)
+        if mode == LAND and msg.confirmation == 0:
+            return []
+        delay = self.again_s if msg.confirmation else self.first_s
+        asyncio.get_running_loop().call_later(delay, self._answer, mode, msg.confirmation)
+        return []
+
+    def _answer(self, mode: int, confirmation: int) -> None:
+        assert self.peer is not None
+        self.answered.append((mode, confirmation))
+        ack = self.peer.codec.command_ack_encode(
+            mavlink2.MAV_CMD_DO_SET_MODE, mavlink2.MAV_RESULT_ACCEPTED
+        )
+        self.peer.send(ack)
+
+
+RTL, LAND = 6, 9  # ArduCopter's custom modes
+
+
+@pytest.mark.virtual_clock
+async def test_a_late_answer_to_a_resent_command_does_not_end_the_next_of_its_number() -> None:
+    """An operator's RTL is re-sent (the first ACK is slow), the first ACK ends it, and the
+    abort's LAND goes out and is lost. The re-sent RTL's ACK, still on its way, must not
+    be taken for the LAND's: a COMMAND_ACK names only the command's number (DO_SET_MODE
+    for both). Found by fuzzed flight 2140, where the vehicle stayed in RTL through the
+    abort."""
+    autopilot = SlowModeChanges(first_s=0.25, again_s=0.1)
+    link, peer = await linked(autopilot)
+    autopilot.peer = peer
+    actions = FlightActions(link, CommandPolicy(timeout_s=0.2, retries=3))
+    try:
+        await actions.return_to_launch()
+        await actions.land()
+        assert (LAND, 1) in autopilot.answered  # the LAND was answered, not taken as done
+        lands = [m.confirmation for m in peer.sent("COMMAND_LONG") if m.param2 == LAND]
+        assert lands == [0, 1]
+    finally:
+        await link.close()
+
+
 class StoringAutopilot:
     """ArduPilot's side of the mission protocol, booting first: NO_SPACE until booted,
     items stored and given back as ArduPilot rebuilds them (frame 3, DO items frame 0,
