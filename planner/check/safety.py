@@ -16,6 +16,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from planner.geometry.clearance import SQUARE_REACH
 from planner.geometry.grid_search import cell_map
 from planner.geometry.squares import pairs_square_distance
 from planner.model.trajectory import Trajectory
@@ -95,7 +96,36 @@ def _window_boxes(flight: Trajectory, edges: NDArray[np.float64]) -> NDArray[np.
 
 
 def closest_approach(a: Trajectory, b: Trajectory) -> tuple[float, float]:
-    """Smallest centre distance while both are airborne, and when it happens."""
+    """Smallest centre distance while both are airborne, and when it happens.
+
+    The conflict table calls this for every near pair after every change of a flight
+    (hundreds of times per plan on arrays of a few breakpoints), so it works on the x
+    and y columns apart, in as few numpy calls as the arithmetic allows: the same
+    operations, element by element, as on the stacked (n, 2) positions."""
+    if a.times[0] > 0.0 or b.times[0] > 0.0:  # one takes off late: NaN before, as `at` says
+        return _closest_approach_late(a, b)
+    end = min(a.end_time, b.end_time)
+    times = np.concatenate((a.times, b.times, (0.0, end)))
+    times = np.unique(times[(times >= 0) & (times <= end)])
+    pa, pb = a.points, b.points
+    gx = np.interp(times, a.times, pa[:, 1]) - np.interp(times, b.times, pb[:, 1])
+    gy = np.interp(times, a.times, pa[:, 2]) - np.interp(times, b.times, pb[:, 2])
+    if len(times) == 1:
+        return float(np.hypot(gx[0], gy[0])), float(times[0])
+    sx, sy = gx[:-1], gy[:-1]
+    cx, cy = gx[1:] - sx, gy[1:] - sy
+    speed2 = cx * cx + cy * cy
+    moving = speed2 > 0
+    tau = np.divide(-(sx * cx + sy * cy), speed2, out=np.zeros(len(speed2)), where=moving)
+    tau = np.minimum(np.maximum(tau, 0.0), 1.0)
+    dist = np.hypot(sx + tau * cx, sy + tau * cy)
+    k = int(np.argmin(dist))
+    return float(dist[k]), float(times[k] + tau[k] * (times[k + 1] - times[k]))
+
+
+def _closest_approach_late(a: Trajectory, b: Trajectory) -> tuple[float, float]:
+    """`closest_approach` on the stacked positions, for flights that do not both take off
+    at t = 0 (positions before take-off are NaN)."""
     end = min(a.end_time, b.end_time)
     times = np.unique(np.concatenate([a.times, b.times, [0.0, end]]))
     times = times[(times >= 0) & (times <= end)]
@@ -200,6 +230,7 @@ def cell_conflicts(
         & (cells[None, :, 1] <= hi[:, None, 1])
     )
     leg, cell = np.nonzero(inside)  # pairs by leg, then by the cell's order
+    leg, cell = _centre_near(a, b, cells, leg, cell, radius)
     if not len(leg):
         return []
     dist, tau = pairs_square_distance(a[leg], b[leg], cells[cell])
@@ -217,6 +248,33 @@ def cell_conflicts(
             kind, (uav,), float(when), (float(where[0]), float(where[1])), d, radius, key
         )
     return list(hits.values())
+
+
+def _centre_near(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    cells: NDArray[np.intp],
+    leg: NDArray[np.intp],
+    cell: NDArray[np.intp],
+    radius: float,
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """The (leg, cell) pairs whose cell centre comes within the radius plus the square's
+    reach (its corners' distance, with a margin for rounding) of the leg: no other square
+    can come within the radius. A leg's box holds a band of cells many times wider than
+    that, and the exact square distance costs some sixty numpy calls per batch, so the
+    pairs it measures are first thinned by this one projection."""
+    if not len(leg):
+        return leg, cell
+    p0, centre = a[leg], cells[cell]
+    d = b[leg] - p0
+    rel = centre - p0
+    length2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
+    along = rel[:, 0] * d[:, 0] + rel[:, 1] * d[:, 1]
+    u = np.divide(along, length2, out=np.zeros(len(leg)), where=length2 > 0)
+    u = np.minimum(np.maximum(u, 0.0), 1.0)
+    gx, gy = rel[:, 0] - u * d[:, 0], rel[:, 1] - u * d[:, 1]
+    near = gx * gx + gy * gy <= (radius + SQUARE_REACH + 1e-6) ** 2
+    return leg[near], cell[near]
 
 
 @dataclass(frozen=True)

@@ -60,8 +60,11 @@ class ConflictTable:
             table.update(uav, trajectory)
         return table
 
-    def update(self, uav: str, trajectory: Trajectory) -> None:
-        """`uav` now flies `trajectory`: recompute its pairs and its cell hits."""
+    def update(self, uav: str, trajectory: Trajectory, cell_hits: int | None = None) -> None:
+        """`uav` now flies `trajectory`: recompute its pairs and its cell hits, unless the
+        caller has just counted those against this table's map (`cell_hits`: the safe
+        start's and the improvement's changes are tested for blocked cells before they are
+        made, and the count costs as much as the pairs)."""
         self.paths[uav] = trajectory
         xy = trajectory.xy
         self.boxes[uav] = np.concatenate([xy.min(axis=0), xy.max(axis=0)])
@@ -84,7 +87,9 @@ class ConflictTable:
                 mid = (trajectory.at([when])[0] + self.paths[other].at([when])[0]) / 2
                 where = (float(mid[0]), float(mid[1]))
                 self.pairs[key] = Conflict("uav", (uav, other), when, where, dist, need)
-        self.cell_hits[uav] = len(cell_conflicts(uav, trajectory, self.radii[uav], self.blocked))
+        if cell_hits is None:
+            cell_hits = len(cell_conflicts(uav, trajectory, self.radii[uav], self.blocked))
+        self.cell_hits[uav] = cell_hits
 
     def on_map(self, blocked: NDArray[np.bool_]) -> None:
         """The blocked cells changed (the wormhole step): recount the cell hits only,

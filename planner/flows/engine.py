@@ -112,14 +112,15 @@ class Engine:
 
     def change(self, uav: str, trajectory: Trajectory, phase: Phase, allowed: int | None) -> bool:
         """`uav` flies `trajectory`, unless it then has more than `allowed` conflicts by the
-        exact check (None: any number)."""
+        exact check (None: any number). The callers have found `trajectory` in no blocked
+        cell of the table's map, so the table is told so rather than count again."""
         state = self.state
-        old = state.paths[uav]
+        old, old_hits = state.paths[uav], state.table.cell_hits[uav]
         state.paths[uav] = trajectory
-        state.table.update(uav, trajectory)
+        state.table.update(uav, trajectory, cell_hits=0)
         if allowed is not None and len(state.table.collision_paths(uav)) > allowed:
             state.paths[uav] = old  # cheaper by the sampled cost, but not by the exact check
-            state.table.update(uav, old)
+            state.table.update(uav, old, cell_hits=old_hits)
             return False
         state.replans.setdefault(uav, []).append(phase.value)
         self.record_if_safe()

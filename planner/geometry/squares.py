@@ -18,42 +18,49 @@ def pairs_square_distance(
     """Distance from segment p0[k]-p1[k] to cells[k]'s unit square, for many pairs at
     once, and the segment parameter of the closest point. Between two disjoint convex
     shapes the minimum is reached at a vertex of one of them, so the endpoints and the
-    square's corners are enough."""
+    square's corners are enough.
+
+    The safety check calls this after every change of a flight on a few dozen pairs, so
+    both axes' slabs and the four corners are computed in one array each (the same
+    element-wise operations as one axis and one corner at a time)."""
     centre = cells.astype(float)
     d = p1 - p0
     n = len(cells)
-    entry, exit_ = np.zeros(n), np.ones(n)
-    for axis in range(2):
-        lo, hi = centre[:, axis] - 0.5, centre[:, axis] + 0.5
-        da, pa = d[:, axis], p0[:, axis]
-        flat = np.abs(da) < 1e-15
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t1, t2 = (lo - pa) / da, (hi - pa) / da
-        outside = flat & ((pa < lo) | (pa > hi))
-        entry = np.where(flat, np.where(outside, 2.0, entry), np.maximum(entry, np.minimum(t1, t2)))
-        exit_ = np.where(flat, exit_, np.minimum(exit_, np.maximum(t1, t2)))
-    crosses = entry <= exit_
+    lo, hi = centre - 0.5, centre + 0.5
+    flat = np.abs(d) < 1e-15
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (lo - p0) / d, (hi - p0) / d
+    outside = flat & ((p0 < lo) | (p0 > hi))
+    # Per axis: where the segment enters and leaves its slab (a flat segment outside the
+    # slab never enters: 2; inside, no bound).
+    enters = np.where(flat, np.where(outside, 2.0, 0.0), np.minimum(t1, t2))
+    leaves = np.where(flat, np.inf, np.maximum(t1, t2))
+    entry = np.maximum(np.maximum(enters[:, 0], enters[:, 1]), 0.0)
+    crosses = entry <= np.minimum(np.minimum(leaves[:, 0], leaves[:, 1]), 1.0)
 
-    candidates = [_point_to_square(p0, centre), _point_to_square(p1, centre)]
-    taus = [np.zeros(n), np.ones(n)]
     length2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
     moving = length2 > 0
     safe2 = np.where(moving, length2, 1.0)
-    for sx in (-0.5, 0.5):
-        for sy in (-0.5, 0.5):
-            corner = centre + np.array([sx, sy])
-            rel = corner - p0
-            u = np.where(
-                moving, np.clip((rel[:, 0] * d[:, 0] + rel[:, 1] * d[:, 1]) / safe2, 0, 1), 0.0
-            )
-            candidates.append(np.hypot(*(p0 + u[:, None] * d - corner).T))
-            taus.append(u)
-    stack, tau_stack = np.stack(candidates), np.stack(taus)
+    corner = centre + _CORNER_OFFSETS  # (4, n, 2)
+    rel = corner - p0
+    u = np.where(
+        moving, np.clip((rel[..., 0] * d[:, 0] + rel[..., 1] * d[:, 1]) / safe2, 0, 1), 0.0
+    )
+    off = p0 + u[..., None] * d - corner
+    stack = np.empty((6, n))
+    stack[0] = _point_to_square(p0, centre)
+    stack[1] = _point_to_square(p1, centre)
+    stack[2:] = np.hypot(off[..., 0], off[..., 1])
+    tau_stack = np.empty((6, n))
+    tau_stack[0], tau_stack[1], tau_stack[2:] = 0.0, 1.0, u
     best = np.argmin(stack, axis=0)
     cols = np.arange(n)
     dist = np.where(crosses, 0.0, stack[best, cols])
     tau = np.where(crosses, np.clip(entry, 0, 1), tau_stack[best, cols])
     return dist, tau
+
+
+_CORNER_OFFSETS = np.array([(-0.5, -0.5), (-0.5, 0.5), (0.5, -0.5), (0.5, 0.5)])[:, None, :]
 
 
 def segment_clearance(

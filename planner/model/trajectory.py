@@ -74,10 +74,10 @@ class Trajectory:
     def at(self, times: ArrayLike) -> NDArray[np.float64]:
         """Positions at `times`, shape (n, 2); NaN before take-off at 0 or after landing."""
         t = np.asarray(times, dtype=float)
-        out = np.column_stack(
-            [np.interp(t, self.times, self.xy[:, 0]), np.interp(t, self.times, self.xy[:, 1])]
-        )
-        out[(t < self.times[0]) | (t > self.end_time)] = np.nan
+        points, nan = self.points, math.nan  # interp's left and right: NaN outside the flight
+        out = np.empty((t.size, 2))
+        out[:, 0] = np.interp(t, points[:, 0], points[:, 1], nan, nan).ravel()
+        out[:, 1] = np.interp(t, points[:, 0], points[:, 2], nan, nan).ravel()
         return out
 
     def between(self, start: float, end: float) -> Trajectory | None:

@@ -267,52 +267,59 @@ def _earliest(
     """SIPP on the chain of sample points: hover seconds per sample of the fastest safe
     flight, or None. A state is (end of its safe interval, earliest arrival, parent);
     between points with no forbidden interval nothing can happen, so those stretches are
-    jumped. Plain Python: a point has one to three safe intervals, too few for numpy."""
+    jumped. Plain Python: a point has one to three safe intervals, too few for numpy; the
+    arrivals and the ends of their intervals are kept in lists of their own, as the loop
+    runs once per sample point that has a forbidden interval (hundreds per path)."""
     points = np.unique(slot).tolist()
     bounds = np.searchsorted(slot, [*points, count]).tolist()
     his, los = hi.tolist(), lo.tolist()
-
-    def gaps(index: int) -> list[tuple[float, float]]:
-        """Safe intervals of the index-th point with forbidden intervals."""
-        a, b = bounds[index], bounds[index + 1]
-        return list(zip([-math.inf, *his[a:b]], [*los[a:b], math.inf], strict=True))
-
-    # Trail entries: (sample, [(arrival, parent index in the previous entry)]).
-    start = gaps(0) if points and points[0] == 0 else [(-math.inf, math.inf)]
-    inside = [(lo_, hi_) for lo_, hi_ in start if lo_ <= 0.0 < hi_]
+    inf, n_points, last = math.inf, len(points), count - 1
+    nxt = 1 if points and points[0] == 0 else 0
+    start = _safe(his, los, bounds, 0) if nxt else [(-inf, inf)]
+    inside = [d for c, d in start if c <= 0.0 < d]
     if not inside:
         return None  # hovering at the start is unsafe from t = 0
-    ends = [inside[0][1]]
+    ends, arrivals = inside[:1], [0.0]
+    # Trail entries: (sample, [(arrival, parent index in the previous entry)]).
     trail: list[tuple[int, list[tuple[float, int]]]] = [(0, [(0.0, -1)])]
-    k, nxt = 0, 1 if points and points[0] == 0 else 0
-    while k < count - 1:
-        target = points[nxt] if nxt < len(points) else count - 1
-        arrivals = trail[-1][1]
+    k = 0
+    while k < last:
+        target = points[nxt] if nxt < n_points else last
         if target > k + 1:  # free points up to target - 1: fly on from the best state
-            best = min(range(len(arrivals)), key=lambda i: arrivals[i][0])
-            k_free = target - 1
-            trail.append((k_free, [(arrivals[best][0] + (k_free - k) * travel, best)]))
-            ends, k = [math.inf], k_free
-            arrivals = trail[-1][1]
-        nexts = gaps(nxt) if nxt < len(points) and points[nxt] == k + 1 else [(-math.inf, math.inf)]
-        states, new_ends = [], []
+            best = min(range(len(arrivals)), key=arrivals.__getitem__)
+            arrivals = [arrivals[best] + (target - 1 - k) * travel]
+            trail.append((target - 1, [(arrivals[0], best)]))
+            ends, k = [inf], target - 1
+        if nxt < n_points and points[nxt] == k + 1:
+            nexts = _safe(his, los, bounds, nxt)
+            nxt += 1
+        else:
+            nexts = [(-inf, inf)]
+        states, new_ends, new_arrivals = [], [], []
         for c, d in nexts:
-            first, parent = math.inf, -1
-            for i, (arrival, _) in enumerate(arrivals):
-                depart = max(arrival, c - travel)
+            first, parent, earliest = inf, -1, c - travel
+            for i, arrival in enumerate(arrivals):
+                depart = max(arrival, earliest)
                 if depart <= ends[i] and depart + travel <= d and depart + travel < first:
                     first, parent = depart + travel, i
             if parent >= 0:
                 states.append((first, parent))
                 new_ends.append(d)
+                new_arrivals.append(first)
         if not states:
             return None
         trail.append((k + 1, states))
-        ends = new_ends
-        if nxt < len(points) and points[nxt] == k + 1:
-            nxt += 1
+        ends, arrivals = new_ends, new_arrivals
         k += 1
     return _hovers(trail, travel)
+
+
+def _safe(
+    his: list[float], los: list[float], bounds: list[int], index: int
+) -> list[tuple[float, float]]:
+    """Safe intervals of the index-th point with forbidden intervals: between them."""
+    a, b = bounds[index], bounds[index + 1]
+    return list(zip([-math.inf, *his[a:b]], [*los[a:b], math.inf], strict=True))
 
 
 def _hovers(trail: list[tuple[int, list[tuple[float, int]]]], travel: float) -> dict[int, float]:
