@@ -163,13 +163,20 @@ def exploration(
     for uav, trajectory in state.paths.items():
         pc = collision_paths[uav]
         priority[uav] = importance(pc, trajectory.end_time)
-        spec = state.specs[uav]
-        flight = Trajectory.from_waypoints(merge_collinear(first[uav]), spec.speed)
-        on_path = len(cell_conflicts(uav, flight, spec.radius, objects)) if total else 0
-        threat[uav] = len(pc) / others * (on_path / total if total else 0.0)
+        share = _on_path(state, uav, first[uav], objects) / total if total else 0.0
+        threat[uav] = len(pc) / others * share
     closest = min(table.closest.values(), default=float("inf"))
     conflicts = list(table.pairs.values())
     return Exploration(conflicts, collision_paths, priority, dict(state.shortest), threat, closest)
+
+
+def _on_path(
+    state: PlanningState, uav: str, route: lone_paths.Route, objects: NDArray[np.bool_]
+) -> int:
+    """How many non-UAV objects `uav`'s obstacle-only path touches (OTP's count, eq. 4)."""
+    spec = state.specs[uav]
+    flight = Trajectory.from_waypoints(merge_collinear(route), spec.speed)
+    return len(cell_conflicts(uav, flight, spec.radius, objects))
 
 
 def safe_start(engine: Engine, world: Map, free: NDArray[np.bool_], start: Budget) -> None:

@@ -195,13 +195,16 @@ def _projection(a: Array, v: Array, chord: Array) -> float:
 def _near_triangles(cells: Array, triangles: Array, reach: Array) -> NDArray[np.bool_]:
     """Whether each cell centre (M, 2) is inside its triangle (M, 3, 2) or within `reach`
     (M,) of its edges: the cells that may come near a leg inside the triangle."""
-    a, b = triangles, np.roll(triangles, -1, axis=1)
+    a, b = triangles, triangles[:, _NEXT_CORNER]  # np.roll(-1)'s values, in one call
     d, rel = b - a, cells[:, None] - a
     gx, gy = _offsets(rel, d)
     near: NDArray[np.bool_] = (gx * gx + gy * gy).min(axis=1) <= reach * reach
     side = d[..., 0] * rel[..., 1] - d[..., 1] * rel[..., 0]
     inside: NDArray[np.bool_] = np.all(side >= 0, axis=1) | np.all(side <= 0, axis=1)
     return near | inside
+
+
+_NEXT_CORNER = [1, 2, 0]
 
 
 def _offsets(rel: Array, d: Array) -> tuple[Array, Array]:

@@ -83,27 +83,47 @@ def min_gap(move: Move, flight: Flight) -> float:
     """Smallest centre distance between a straight move and a flight while both fly.
 
     Between consecutive breakpoints of either, both move linearly, so the distance
-    has a closed-form minimum on each piece: exact, nothing sampled.
+    has a closed-form minimum on each piece: exact, nothing sampled. Every move of a
+    space-time search is tested by this (thousands per search), so the flight's position
+    (`Flight.at`) and the distance to each piece (`_segment_min`) are written out in the
+    loop, with the same arithmetic.
     """
     t0, x0, y0, t1, x1, y1 = move
-    lo, hi = max(t0, flight.ts[0]), min(t1, flight.ts[-1])
+    ts, xs, ys = flight.ts, flight.xs, flight.ys
+    lo = ts[0] if ts[0] > t0 else t0  # max(t0, ts[0]), min(t1, ts[-1]), without the calls
+    hi = ts[-1] if ts[-1] < t1 else t1
     if lo > hi:
         return math.inf
-    inner = flight.ts[bisect_right(flight.ts, lo) : bisect_right(flight.ts, hi)]
-    times = [lo, *(t for t in inner if lo < t < hi), hi]
-
-    def gap(t: float) -> tuple[float, float]:
-        u = 0.0 if t1 <= t0 else (t - t0) / (t1 - t0)
-        fx, fy = flight.at(t)
-        return x0 + u * (x1 - x0) - fx, y0 + u * (y1 - y0) - fy
-
+    inner = ts[bisect_right(ts, lo) : bisect_right(ts, hi)]
+    last = len(ts) - 2
+    span, mx, my = t1 - t0, x1 - x0, y1 - y0
     best = math.inf
-    prev = gap(times[0])
-    for t in times[1:]:
-        cur = gap(t)
-        best = min(best, _segment_min(prev, cur))
-        prev = cur
+    px = py = 0.0
+    for n, t in enumerate([lo, *(t for t in inner if lo < t < hi), hi]):
+        u = 0.0 if t1 <= t0 else (t - t0) / span
+        k = bisect_right(ts, t) - 1
+        k = 0 if k < 0 else k
+        k = last if k > last else k
+        if k < 0:
+            fx, fy = xs[0], ys[0]
+        else:
+            a, b = ts[k], ts[k + 1]
+            v = 0.0 if b <= a else _unit((t - a) / (b - a))
+            fx, fy = xs[k] + v * (xs[k + 1] - xs[k]), ys[k] + v * (ys[k + 1] - ys[k])
+        cx, cy = x0 + u * mx - fx, y0 + u * my - fy
+        if n:
+            dx, dy = cx - px, cy - py
+            d2 = dx * dx + dy * dy
+            w = 0.0 if d2 == 0 else _unit(-(px * dx + py * dy) / d2)
+            gap = math.hypot(px + w * dx, py + w * dy)
+            best = gap if gap < best else best
+        px, py = cx, cy
     return best
+
+
+def _unit(x: float) -> float:
+    """min(max(x, 0.0), 1.0), the same float (NaN and -0.0 included), without two calls."""
+    return 0.0 if x < 0.0 else 1.0 if x > 1.0 else x
 
 
 def _segment_min(p: tuple[float, float], q: tuple[float, float]) -> float:
@@ -246,10 +266,12 @@ class _IndexedSearch(Search):
             self._near_key, self._near = (t0, x0, y0), np.flatnonzero(near).tolist()
             self.origins.append((t0, x0, y0))
             self.touched.update(self._near)
-        return all(
-            min_gap(move, self.flights[k]) >= self.spec.radius + self.flights[k].radius
-            for k in self._near
-        )
+        radius, flights = self.spec.radius, self.flights
+        for k in self._near:
+            flight = flights[k]
+            if not min_gap(move, flight) >= radius + flight.radius:
+                return False
+        return True
 
 
 def search(
