@@ -291,12 +291,17 @@ def _earliest(
             trail.append((target - 1, [(arrivals[0], best)]))
             ends, k = [inf], target - 1
         if nxt < n_points and points[nxt] == k + 1:
-            nexts = _safe(his, los, bounds, nxt)
+            a, b = bounds[nxt], bounds[nxt + 1]
             nxt += 1
         else:
-            nexts = [(-inf, inf)]
+            a = b = 0  # no forbidden interval: one safe interval, (-inf, inf)
         states, new_ends, new_arrivals = [], [], []
-        for c, d in nexts:
+        latest = max(ends)  # no state departs later: later safe intervals are out of reach
+        for m in range(a, b + 1):  # safe interval (his[m - 1], los[m]), -inf and inf at the ends
+            c = his[m - 1] if m > a else -inf
+            if c - travel > latest:
+                break
+            d = los[m] if m < b else inf
             first, parent, earliest = inf, -1, c - travel
             for i, arrival in enumerate(arrivals):
                 depart = max(arrival, earliest)
