@@ -25,6 +25,7 @@ from gcs.mavlink.mission_item import Autopilot, Command, Mission
 from gcs.mission.build import DEFAULT_ALTITUDE_M, Finish, Visit, build_missions, takeoff_index
 from gcs.mission.flight_timing import TimedPath, fly
 from gcs.mission.geodesy import Floats, GridFrame
+from gcs.mission.landing_clearance import clear_landings
 from gcs.mission.motion import (
     DEFAULT_SPEED_M_S,
     CopterLimits,
@@ -169,14 +170,16 @@ def flight_plan(
         uav: _at_cruise(given.get(uav, CopterLimits()), leg_speeds[uav], turn_radius_m)
         for uav in paths
     }
-    order = PassingOrder.derive(paths.values(), margin_m=2 * stray_m(max_speed_m_s))
+    margin = 2 * stray_m(max_speed_m_s)
+    order = PassingOrder.derive(paths.values(), margin_m=margin)
     _refuse_if_unsafe(order, radius, max_speed_m_s)
     slow_plan, slow_scenario = stretched(plan, scenario, factor)
     missions = _missions(slow_plan, slow_scenario, autopilots, altitude_m, finish, turn_radius_m)
-    return FlightPlan(
+    flight = FlightPlan(
         max_speed_m_s, factor, slow_plan, slow_scenario, missions, paths, leg_speeds,
         vehicle_limits, order, altitude_m,
     )  # fmt: skip
+    return _with_landings_cleared(flight, margin)
 
 
 def continued(
@@ -195,15 +198,43 @@ def continued(
         else path.after(along.get(uav, 0.0))
         for uav, path in flight.paths.items()
     }
-    leg_speeds = {uav: _leg_speeds(path) for uav, path in paths.items()}
     order = PassingOrder.derive(paths.values(), margin_m=2 * stray_m(flight.speed_m_s))
     return dataclasses.replace(
         flight,
         missions={**flight.missions, **missions},
         paths=paths,
-        leg_speeds=leg_speeds,
+        leg_speeds=_legs(paths),
         order=order,
     )
+
+
+def _with_landings_cleared(flight: FlightPlan, margin_m: float) -> FlightPlan:
+    """The flight with its landers held short where nobody then waits out a landing
+    (`landing_clearance`), timed with the same simulation the flight is timed with.
+    Only before take-off: after a live replan a hold could fall right in front of a
+    vehicle at speed, where it cannot stop."""
+
+    radius = {uav: path.radius_m for uav, path in flight.paths.items()}
+
+    def derive(paths: Mapping[str, PlannedPath]) -> PassingOrder | None:
+        order = PassingOrder.derive(paths.values(), margin_m=margin_m)
+        return order if order.narrowest_margin_m(radius) >= margin_m - 1e-9 else None
+
+    def score(paths: Mapping[str, PlannedPath], order: PassingOrder) -> tuple[float, float]:
+        timed = dataclasses.replace(
+            flight, paths=dict(paths), leg_speeds=_legs(paths), order=order
+        ).timed
+        arrivals = [t.arrival_s for t in timed.values()]
+        return max(arrivals, default=0.0), sum(arrivals)
+
+    paths, order = clear_landings(flight.paths, flight.order, derive, score)
+    if paths is flight.paths:
+        return flight
+    return dataclasses.replace(flight, paths=paths, leg_speeds=_legs(paths), order=order)
+
+
+def _legs(paths: Mapping[str, PlannedPath]) -> dict[str, Floats]:
+    return {uav: _leg_speeds(path) for uav, path in paths.items()}
 
 
 def stretched(plan: Plan, scenario: Scenario, factor: float) -> tuple[Plan, Scenario]:

@@ -71,13 +71,7 @@ class PlannedPath:
 
     def after(self, s: float) -> PlannedPath:
         """What is left of the path from `s` metres along it, on the same clock."""
-        along = self.s
-        s = float(np.clip(s, 0.0, along[-1]))
-        k = int(np.searchsorted(along, s, side="right"))
-        t = float(np.interp(s, along, self.leave)) if k < len(along) else float(self.leave[-1])
-        if 0 < k < len(along):  # between vertices k - 1 and k: on the clock of that leg
-            f = (s - along[k - 1]) / max(along[k] - along[k - 1], 1e-12)
-            t = self.leave[k - 1] + f * (self.arrive[k] - self.leave[k - 1])
+        k, s, t = self._clock_at(s)
         here = np.array([self.position(s)])
         rest = slice(k, None)
         return PlannedPath(
@@ -87,6 +81,39 @@ class PlannedPath:
             np.concatenate([[t], self.leave[rest]]),
             self.radius_m,
         )
+
+    def leaves(self, s: float) -> float:
+        """When the plan has the UAV leave the point `s` metres along its path."""
+        return self._clock_at(s)[2]
+
+    def held(self, s: float, until: float) -> PlannedPath:
+        """The same path with the UAV hovering at `s` metres along it until `until` (or
+        as planned, if it leaves later anyway), and everything after it that much later."""
+        k, s, t = self._clock_at(s)
+        wait = until - t
+        if wait <= 0:
+            return self
+        at_vertex = k > 0 and self.s[k - 1] == s
+        xy, arrive, leave = self.xy, self.arrive.copy(), self.leave.copy()
+        if not at_vertex:  # a vertex of its own, reached at t
+            xy = np.insert(xy, k, self.position(s), axis=0)
+            arrive, leave = np.insert(arrive, k, t), np.insert(leave, k, t)
+            k += 1
+        leave[k - 1] += wait
+        arrive[k:] += wait
+        leave[k:] += wait
+        return PlannedPath(self.uav_id, xy, arrive, leave, self.radius_m)
+
+    def _clock_at(self, s: float) -> tuple[int, float, float]:
+        """(the first vertex beyond `s`, `s` kept on the path, when the UAV leaves it)."""
+        along = self.s
+        s = float(np.clip(s, 0.0, along[-1]))
+        k = int(np.searchsorted(along, s, side="right"))
+        t = float(np.interp(s, along, self.leave)) if k < len(along) else float(self.leave[-1])
+        if 0 < k < len(along):  # between vertices k - 1 and k: on the clock of that leg
+            f = (s - along[k - 1]) / max(along[k] - along[k - 1], 1e-12)
+            t = self.leave[k - 1] + f * (self.arrive[k] - self.leave[k - 1])
+        return k, s, float(t)
 
     def position(self, s: float) -> tuple[float, float]:
         along = self.s
