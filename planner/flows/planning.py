@@ -9,7 +9,6 @@ as a flow of `planner.flows.policies` says; `Phase` says why a path changed.
 from __future__ import annotations
 
 import dataclasses
-import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
@@ -228,13 +227,20 @@ def adjoining_start_distance(scenario: Scenario, priority: dict[str, float]) -> 
 
 
 def as_waypoints(trajectory: Trajectory) -> tuple[Array, Array]:
-    """Waypoints and hover times of a trajectory (a hover is two points at one place)."""
+    """Waypoints and hover times of a trajectory (a hover is two points at one place:
+    `np.allclose` of consecutive positions, its test written out for all of them at once,
+    since a space-time search's flight has a point per step and this is asked of every
+    flight a search or a re-timing looks at)."""
     points = trajectory.points
-    waypoints, waits = [points[0, 1:]], [0.0]
-    for prev, cur in itertools.pairwise(points):
-        if np.allclose(prev[1:], cur[1:]):
-            waits[-1] += cur[0] - prev[0]
+    a, b = points[:-1, 1:], points[1:, 1:]
+    with np.errstate(invalid="ignore"):
+        close = (np.abs(a - b) <= 1e-08 + 1e-05 * np.abs(b)) & np.isfinite(b) | (a == b)
+    times = points[:, 0].tolist()
+    keep, waits = [0], [0.0]
+    for k, hover in enumerate(close.all(axis=1).tolist()):
+        if hover:
+            waits[-1] += times[k + 1] - times[k]
         else:
-            waypoints.append(cur[1:])
+            keep.append(k + 1)
             waits.append(0.0)
-    return np.array(waypoints), np.array(waits)
+    return points[keep, 1:], np.array(waits)
