@@ -1,5 +1,6 @@
 """Inputs that cannot poison a mission, waits that always end, the token before the body
-(issue 12), in process on the virtual clock. What needs the wire (the Host header and a
+(issue 12), a vehicle whose packets are refused for their signature (issue 28), in
+process on the virtual clock. What needs the wire (the Host header and a
 WebSocket's Origin as uvicorn hands them over, chunked and slow bodies, SIGTERM) is in
 tests/e2e/test_hardening.py."""
 
@@ -14,8 +15,9 @@ import pytest
 from gcs.mavlink.endpoint import Endpoint
 from gcs.mavlink.transport import ByteTransport, MemoryTransport
 from planner.cases import load_case
+from sitl_mock import VehicleConfig
 from tests.inprocess.service import InProcessService, until
-from tests.inprocess.vehicles import SimulatedVehicles
+from tests.inprocess.vehicles import FAST_BOOT, SimulatedVehicles
 
 pytestmark = [pytest.mark.virtual_clock]
 
@@ -145,3 +147,31 @@ async def test_forty_deletes_in_a_row_all_answer(
 
         await until(connecting, 5, f"vehicle {k}'s link connecting")
         assert (await client.delete(f"/vehicles/{registered.json()['id']}")).status_code == 204
+
+
+# --- a vehicle whose packets are refused (issue 28) ------------------------------------------
+
+
+async def test_a_vehicle_refused_for_its_signature_is_reported_with_the_reason(
+    gcs: InProcessService,
+) -> None:
+    """Issue 28: a vehicle whose packets were all refused for their signature was shown
+    only as "no HEARTBEAT". Registered with a key other than the vehicle's, the service
+    says that packets were refused, and why. (The signature check is the link's, whatever
+    carries its bytes: in memory here, on the virtual clock, where the wait for a
+    HEARTBEAT that never passes costs no wall time.)"""
+    config = VehicleConfig(sysid=1, transport="memory", signing_key=bytes(range(32)), **FAST_BOOT)
+    sim = await gcs.vehicles.start([config])
+    client = gcs.client
+    body = {"connection": sim.connection_string(1), "signing_key": "not its key"}
+    answer = await client.post("/vehicles", json=body)
+    assert answer.status_code == 201, answer.text
+    vid = answer.json()["id"]
+
+    async def reason() -> str:
+        live = (await client.get(f"/vehicles/{vid}")).json()["live"]
+        error = str(live.get("error", ""))
+        return error if "signature" in error else ""
+
+    error = await until(reason, 60, "the reason the vehicle is not heard")
+    assert "refused for their signature" in error and "another key" in error, error
