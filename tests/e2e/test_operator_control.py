@@ -19,6 +19,7 @@ import pytest
 
 from planner.cases import load_case
 from tests.e2e.flying import Flight, fleet_at_starts, wait_for
+from tests.inprocess.vehicles import FAST_BOOT
 from tests.service_process import ServiceProcess
 
 pytestmark = pytest.mark.slow
@@ -76,7 +77,7 @@ def test_after_a_restart_the_flight_is_interrupted_and_abort_still_works(
     service = ServiceProcess(tmp_path / "data")
     service.start()
     try:
-        with fleet_at_starts(load_case("case-6"), speedup=10.0).running() as sim:
+        with fleet_at_starts(load_case("case-6"), speedup=10.0, **FAST_BOOT).running() as sim:
             with service.client() as client:
                 flight = Flight.make(client, sim, "case-6")
                 flight.fly()
