@@ -6,8 +6,10 @@ that knows nothing of the grid measures the clearance from the zones itself."""
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 
 import numpy as np
+import pytest
 
 from gcs.mission.fence import fence_of
 from gcs.mission.geographic import load_geographic
@@ -26,6 +28,16 @@ from tests.service_process import ServiceProcess
 
 GEOJSON = {"Content-Type": "application/geo+json"}
 KML = {"Content-Type": "application/vnd.google-earth.kml+xml"}
+
+
+@pytest.fixture(scope="module")
+def service(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServiceProcess]:
+    """One service for the module's tests (a start is seconds of the machine's time):
+    each posts and reads its own scenario; the first restarts it and reads back."""
+    proc = ServiceProcess(tmp_path_factory.mktemp("geographic") / "data")
+    proc.start()
+    yield proc
+    proc.stop()
 
 
 def test_a_geographic_scenario_is_derived_planned_and_answered_in_wgs84(
