@@ -33,8 +33,11 @@ async def continue_(
     crew: Crew, uav_ids: Iterable[str] | None = None
 ) -> dict[str, VehicleOutcome[None]]:
     """Lift the operator's hold: a vehicle flies on unless the passing order has it wait
-    for another (then it goes on as soon as that one has passed)."""
-    chosen = set(crew.members if uav_ids is None else uav_ids) - set(crew.withdrawn)
+    for another (then it goes on as soon as that one has passed). One the operator had
+    sent down or home goes on with that (`_leaving`)."""
+    asked = set(crew.members if uav_ids is None else uav_ids)
+    chosen = asked - set(crew.withdrawn)
+    leaving = await _leaving(crew, asked & set(crew.withdrawn), every=uav_ids is None)
     crew.held -= chosen
     crew.bus.publish(OperatorContinued(tuple(sorted(chosen))))
     along = {uav: m.along for uav, m in crew.members.items()}
@@ -50,7 +53,26 @@ async def continue_(
         uav: VehicleOutcome(uav, True, f"waits for {waits[uav]} to pass first")
         for uav in chosen - moving
     }
-    return {**outcomes, **waiting}
+    return {**outcomes, **waiting, **leaving}
+
+
+async def _leaving(crew: Crew, withdrawn: set[str], every: bool) -> dict[str, VehicleOutcome[None]]:
+    """Vehicles the operator sent down or home and then held go on landing or returning
+    (their command again); one not held is already doing that (and a continue of the
+    whole fleet leaves it out)."""
+    held = withdrawn & crew.held
+    crew.held -= held
+    outcomes: dict[str, VehicleOutcome[None]] = {}
+    for mode in sorted({crew.withdrawn[uav] for uav in held}):
+        going = [uav for uav in sorted(held) if crew.withdrawn[uav] == mode]
+        outcomes |= await fall_back(crew, going, Fallback(mode))
+    if not every:
+        for uav in withdrawn - held:
+            mode = crew.withdrawn[uav]
+            outcomes[uav] = VehicleOutcome(
+                uav, True, f"already on its way ({mode}): out of the plan"
+            )
+    return outcomes
 
 
 async def withdraw(crew: Crew, uav_id: str, mode: str) -> VehicleOutcome[None]:

@@ -554,9 +554,16 @@ class Flight:
                 return events
 
     async def _call(self, method: str, path: str, **kwargs: Any) -> httpx.Response:
-        answer = await self.service.client.request(method, path, **kwargs)
+        """The request, and a violation for a 5xx; an exception the app let through
+        (what a server answers with a 500) is one too, and the flight goes on."""
+        try:
+            answer = await self.service.client.request(method, path, **kwargs)
+        except Exception as exc:  # the in-process transport raises what the app raised
+            answer = httpx.Response(500, text=f"{type(exc).__name__}: {exc}")
         if answer.status_code >= 500:
-            self.report.violations.append(f"{method.upper()} {path}: {answer.status_code}")
+            self.report.violations.append(
+                f"{method.upper()} {path}: {answer.status_code} {answer.text[:200]}"
+            )
         return answer
 
     def _unhandled(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:

@@ -25,6 +25,7 @@ FOUND = {
     "(once the mock resumed at the paused speed, as ArduCopter does: 0.73 m apart)",
     2140: "an abort's LAND, lost on the way, was taken as done on the late ACK of the "
     "operator's re-sent RTL (both DO_SET_MODE): the vehicle stayed in RTL",
+    3000: "continue of a vehicle the operator had sent home and then held: a 500 (KeyError)",
 }
 
 
