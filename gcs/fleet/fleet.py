@@ -37,7 +37,12 @@ from gcs.mavlink.parameters import set_in_units
 from gcs.mission.build import takeoff_index
 from gcs.mission.fence import FencePlan
 from gcs.mission.flight_plan import FlightPlan, continued
+from gcs.mission.motion import Gate
 from planner.model.trajectory import Trajectory
+
+CATCH_UP_S = 15.0
+"""Seconds of its cruise a vehicle may have flown on from where its replanned path starts
+(a replan and its upload over a lossy link: 3 s in fuzzed flight 3034)."""
 
 __all__ = ["Fallback", "Fleet", "FleetSettings", "FlightReport", "VehicleOutcome"]
 
@@ -211,6 +216,10 @@ class Fleet:
             await member.client.set_current(member.takeoff_seq)
 
         started = await crew.each(start_one, "replan", taken)
+        gatekeeper = crew.gatekeeper
+        for uav in taken - crew.held:
+            if gatekeeper.gates[uav] != Gate.GO:
+                crew.commander.restarted(uav, gatekeeper.gates[uav], gatekeeper.approach.get(uav))
         return {**outcomes, **{uav: o for uav, o in started.items() if not o.ok}}
 
     def _follow(self, flight: FlightPlan, changed: set[str], starts_at: float) -> None:
@@ -219,7 +228,8 @@ class Fleet:
         crew.flight = flight
         crew.gatekeeper.replan(flight.order, flight.limits)
         for uav, member in crew.members.items():
-            member.along.restart(flight.paths[uav])
+            flown_since = CATCH_UP_S * flight.limits[uav].speed_m_s
+            member.along.restart(flight.paths[uav], member.link.state, flown_since)
             if uav in changed:
                 visits = [v.shifted(starts_at) for v in flight.visits(uav)]
                 member.follow_mission(flight.missions[uav], visits)

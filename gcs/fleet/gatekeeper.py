@@ -129,6 +129,15 @@ class GateCommander:
             self.applied[uav_id] = Gate.CREEP  # so that `_bring` restores the speed
             self.want(uav_id, Gate.GO)
 
+    def restarted(self, uav_id: str, gate: Gate, speed_m_s: float | None) -> None:
+        """The vehicle was sent to the start of a new mission (a live replan's
+        MISSION_SET_CURRENT), which gives up a pause (the mock flew on 50 m past its
+        limit in fuzzed flight 3034, its pause taken as still in force): bring it to
+        `gate` again, its speed commanded afresh."""
+        self.applied[uav_id] = Gate.GO
+        self._slowed[uav_id] = math.nan
+        self.want(uav_id, gate, speed_m_s)
+
     def found_stopped(self, uav_id: str) -> None:
         """The vehicle was stopped by others (a flight followed again): at STOP, and its
         speed not known, so that the first change gives it its mission's speed again."""

@@ -26,6 +26,8 @@ FOUND = {
     2140: "an abort's LAND, lost on the way, was taken as done on the late ACK of the "
     "operator's re-sent RTL (both DO_SET_MODE): the vehicle stayed in RTL",
     3000: "continue of a vehicle the operator had sent home and then held: a 500 (KeyError)",
+    3034: "after a live replan a vehicle was looked for only 3 m along its new path, 5 m on, "
+    "and lost; and MISSION_SET_CURRENT had given up its pause: 0.80 m apart",
 }
 
 

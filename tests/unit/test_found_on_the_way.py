@@ -83,3 +83,15 @@ def test_a_tracker_found_on_the_way_has_passed_the_items_before_its_current_one(
     assert tracker.plan_time(state) == pytest.approx(17.0, abs=0.05)
     assert tracker.clock(state) == pytest.approx(17.0, abs=0.05)  # no lag known
     assert tracker.passed_at(0) == 10.0 and tracker.passed_at(1) == 12.0
+
+
+def test_after_a_replan_a_vehicle_that_flew_on_from_the_new_paths_start_is_found() -> None:
+    """The replanned path starts where the vehicle was when the replan began; it flew on
+    5 m while the missions went up. Looked for only a few metres on, it was never found
+    again (fuzzed flight 3034, where the order then held it at its start while it flew)."""
+    progress = PathProgress(U_TURN, FRAME)
+    progress.update(flying_at(30.0, 0.0))
+    progress.restart(U_TURN.after(30.0), flying_at(35.0, 0.0, boot_ms=93_000), within_m=75.0)
+    assert progress.s == pytest.approx(5.0, abs=0.1)
+    assert progress.update(flying_at(36.0, 0.0, boot_ms=93_200))
+    assert progress.s == pytest.approx(6.0, abs=0.1)
