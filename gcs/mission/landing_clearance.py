@@ -11,7 +11,7 @@ within reach of the passer's) until the passer is through. The hold is written i
 the lander's plan times, and the order is derived again from the new clock, so every
 wait still points forward in the plan's time and none can form a circle. A hold is kept
 only where the order still keeps every pair apart at the flight's speed and the timed
-flight ends sooner (`improves`): a lander held short may delay others in turn.
+flight ends sooner (`_improves`): a lander held short may delay others in turn.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gcs.mission.geodesy import Floats
 from gcs.mission.passing_order import PassingOrder, PlannedPath
 
 MAX_HOLDS_TRIED = 8
@@ -28,9 +29,9 @@ MAX_HOLDS_TRIED = 8
 vehicles): a bound on what re-timing may add to setting a flight up."""
 
 HOLD_BACK_M = 1.0
-"""How far short of its final approach a lander holds: clear of the passer's reach by
-more than the order's sampling (at its first step, the hover narrowed the pair's reach
-by 0.01 m, below what the order must keep)."""
+"""How far short of its final approach a lander holds, to be clear of the passer's reach
+by more than the order's sampling (held 0.2 m short, a hover on the six-UAV gap swap
+narrowed the pair's reach by 0.01 m, below what the order must keep)."""
 
 Paths = dict[str, PlannedPath]
 Derive = Callable[[Paths], PassingOrder | None]
@@ -88,12 +89,12 @@ def clear_landings(
         if held_order is None:
             continue
         result = score(held, held_order)
-        if improves(result, best):
+        if _improves(result, best):
             paths, order, best = held, held_order, result
     return paths, order
 
 
-def improves(result: tuple[float, float], best: tuple[float, float]) -> bool:
+def _improves(result: tuple[float, float], best: tuple[float, float]) -> bool:
     """Sooner to the last arrival, or as soon and sooner in sum (by a tenth of a second:
     the timing's step is a twentieth)."""
     if result[0] < best[0] - 0.1:
@@ -108,7 +109,7 @@ def _held_short(paths: Mapping[str, PlannedPath], wait: LandingWait, step_m: flo
     return lander.held(hold_at, passer.leaves(min(wait.clear_m, passer.length)) + step_m)
 
 
-def _final_approach_m(lander_s: np.ndarray, step_m: float) -> float:
+def _final_approach_m(lander_s: Floats, step_m: float) -> float:
     """Where the last unbroken stretch of the lander's samples near the passer begins
     (samples lie at most `step_m` apart)."""
     s = np.unique(lander_s)[::-1]
