@@ -190,8 +190,11 @@ class MissionRunner:
     def jump(self, now: float) -> None:
         """The current item was changed in flight (MISSION_SET_CURRENT): ArduCopter gives
         up the leg it flies (its target jumps to its stopping point) and starts the new
-        item from rest there (AC_WPNav::set_wp_destination after wp_and_spline_init)."""
-        if self._running and not self._paused and self._body.alt > 0:
+        item from rest there (AC_WPNav::set_wp_destination after wp_and_spline_init). A
+        pause is given up with it: SITL 4.8, paused, flew 13.2 m in the next 10 s (up to
+        4.67 m/s) towards the item it was sent to."""
+        if self._running and self._body.alt > 0:
+            self._paused = False
             self._manoeuvre = Stop()
             self._manoeuvre.start(self._body, now)
             self._settling = True

@@ -198,6 +198,7 @@ class Fleet:
 
         async def upload_one(member: Member) -> None:
             await member.client.upload(missions[member.uav_id])
+            self._gate_again(member.uav_id)
 
         outcomes = await self.crew.each(upload_one, "replan", missions)
         taken = {uav for uav, outcome in outcomes.items() if outcome.ok}
@@ -214,13 +215,19 @@ class Fleet:
 
         async def start_one(member: Member) -> None:
             await member.client.set_current(member.takeoff_seq)
+            self._gate_again(member.uav_id)
 
         started = await crew.each(start_one, "replan", taken)
-        gatekeeper = crew.gatekeeper
-        for uav in taken - crew.held:
-            if gatekeeper.gates[uav] != Gate.GO:
-                crew.commander.restarted(uav, gatekeeper.gates[uav], gatekeeper.approach.get(uav))
         return {**outcomes, **{uav: o for uav, o in started.items() if not o.ok}}
+
+    def _gate_again(self, uav_id: str) -> None:
+        """A new mission, or its start made current, gives up a pause (ArduCopter SITL
+        flew on 13.2 m after MISSION_SET_CURRENT while paused): a vehicle the order stops
+        or slows is brought to its gate again at once (fuzzed flight 3034)."""
+        crew, gatekeeper = self.crew, self.crew.gatekeeper
+        gate = gatekeeper.gates[uav_id]
+        if uav_id not in crew.held and gate != Gate.GO:
+            crew.commander.restarted(uav_id, gate, gatekeeper.approach.get(uav_id))
 
     def _follow(self, flight: FlightPlan, changed: set[str], starts_at: float) -> None:
         """From now on: `flight`'s paths and order; new missions for `changed`."""

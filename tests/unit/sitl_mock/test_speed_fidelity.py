@@ -520,6 +520,27 @@ def test_mission_set_current_in_flight_stops_on_the_track_then_flies_from_rest()
     assert flight.now.mission_state != PAUSED and flight.vehicle.store.current == 4
 
 
+def test_mission_set_current_while_paused_gives_up_the_pause():
+    """SITL 4.8, paused at 5 m/s and standing, then MISSION_SET_CURRENT to its waypoint:
+    it flies on, 13.2 m in the next 10 s at up to 4.67 m/s (with a new mission uploaded
+    first, 33.7 m at up to 4.91 m/s). The mock stayed paused (0.0 m), so a live replan,
+    which makes its new mission current, looked harmless to a vehicle held by the passing
+    order: fuzzed flight 3034 then found it flying on against the product's belief."""
+    flight = Flight(mission=[takeoff_item(), speed_item(5.0), waypoint(0.0, 400.0)])
+    flight.hover()
+    assert flight.mode("AUTO") == ACCEPTED
+    flight.fly_until(lambda s: s.north >= 40.0, limit_s=30.0)
+    assert flight.command(mavlink.MAV_CMD_DO_PAUSE_CONTINUE, 0) == ACCEPTED
+    flight.fly_until(lambda s: s.speed < 0.01, limit_s=15.0)
+    assert flight.now.mission_state == PAUSED
+    standing = flight.now.north
+    flight.deliver(mavlink.MAVLink_mission_set_current_message(1, 1, 3))
+    after = flight.fly(10.0)
+    assert flight.now.mission_state != PAUSED
+    assert 10.0 <= after[-1].north - standing <= 40.0
+    assert max(s.speed for s in after) == pytest.approx(5.0, abs=0.3)
+
+
 @pytest.mark.parametrize(
     ("takeoff", "mode"), [("GUIDED", "LAND"), ("AUTO", "LAND"), ("GUIDED", "LOITER")]
 )
