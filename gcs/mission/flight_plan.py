@@ -220,17 +220,16 @@ def _with_landings_cleared(flight: FlightPlan, margin_m: float) -> FlightPlan:
         order = PassingOrder.derive(paths.values(), margin_m=margin_m)
         return order if order.narrowest_margin_m(radius) >= margin_m - 1e-9 else None
 
-    def score(paths: Mapping[str, PlannedPath], order: PassingOrder) -> tuple[float, float]:
-        timed = dataclasses.replace(
-            flight, paths=dict(paths), leg_speeds=_legs(paths), order=order
-        ).timed
-        arrivals = [t.arrival_s for t in timed.values()]
+    timed: list[FlightPlan] = []  # each one scored, its timing kept (a whole simulation)
+
+    def score(paths: dict[str, PlannedPath], order: PassingOrder) -> tuple[float, float]:
+        candidate = dataclasses.replace(flight, paths=paths, leg_speeds=_legs(paths), order=order)
+        timed.append(candidate)
+        arrivals = [t.arrival_s for t in candidate.timed.values()]
         return max(arrivals, default=0.0), sum(arrivals)
 
-    paths, order = clear_landings(flight.paths, flight.order, derive, score)
-    if paths is flight.paths:
-        return flight
-    return dataclasses.replace(flight, paths=paths, leg_speeds=_legs(paths), order=order)
+    paths, _ = clear_landings(flight.paths, flight.order, derive, score)
+    return next((c for c in timed if c.paths is paths), flight)
 
 
 def _legs(paths: Mapping[str, PlannedPath]) -> dict[str, Floats]:
