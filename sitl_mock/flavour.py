@@ -70,11 +70,14 @@ class Flavour:
     forgets_speed_in_auto: bool
     """ArduCopter drops a DO_CHANGE_SPEED given as a command whenever it enters AUTO (after
     a BRAKE, say) and flies at WP_SPD until the mission's next speed item; PX4 keeps it."""
-    resumes_at_paused_speed: bool
-    """ArduCopter resumes a paused mission (DO_PAUSE_CONTINUE 1) at the speed its track had
-    when it was paused, even when a DO_CHANGE_SPEED asked for less meanwhile, and only
-    then slows to it (SITL 4.8: paused at 5 m/s, given 1 m/s, resumed: 4.9 m/s 2 s later,
-    1.0 m/s after 6 s; `bench/approach_vs_sitl.py`). PX4 goes on at the speed asked."""
+    pauses_on_the_track: bool
+    """ArduCopter pauses a mission (DO_PAUSE_CONTINUE 0) by running the clock of its
+    S-curve down (AC_WPNav), not by braking: the curve goes on meanwhile, so a pause while
+    speeding up out of a corner on a 10 m/s track took 14.1 m from 3.8 m/s on SITL 4.8,
+    and a resume (1) runs the clock up again on the speed the track had when paused, even
+    when a DO_CHANGE_SPEED asked for less meanwhile (paused at 5 m/s, given 1 m/s,
+    resumed: 4.9 m/s 2 s later, 1.0 m/s after 6 s; `bench/approach_vs_sitl.py`). PX4
+    slows along its velocity and goes on at the speed asked."""
 
     def new_params(self, sysid: int) -> ParameterSet:
         params = ParameterSet(self.param_defaults, bytewise=self.params_bytewise)
@@ -111,7 +114,7 @@ ARDUPILOT = Flavour(
     sends_unasked=True,
     pauses_only_on_the_way=True,
     forgets_speed_in_auto=True,
-    resumes_at_paused_speed=True,
+    pauses_on_the_track=True,
 )
 
 PX4 = Flavour(
@@ -143,7 +146,7 @@ PX4 = Flavour(
     sends_unasked=False,
     pauses_only_on_the_way=False,
     forgets_speed_in_auto=False,
-    resumes_at_paused_speed=False,
+    pauses_on_the_track=False,
 )
 
 FLAVOURS = {flavour.name: flavour for flavour in (ARDUPILOT, PX4)}

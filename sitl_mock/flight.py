@@ -38,8 +38,6 @@ AIRBORNE_ABOVE_M = 0.5
 NOT_ARMABLE = frozenset({FlightMode.AUTO, FlightMode.RTL, FlightMode.LAND})
 RALLY_LIMIT_M = 300.0
 """ArduCopter's RALLY_LIMIT_KM default: a nearest rally point further away is not used."""
-SURGE_REACHED_M_S = 0.1
-"""A track resumed at its paused speed is there this close to it (then it slows)."""
 USER_TAKEOFF_MODES = frozenset({FlightMode.GUIDED, FlightMode.LOITER})
 """ArduCopter modes in which a NAV_TAKEOFF command is obeyed."""
 
@@ -81,8 +79,6 @@ class FlightController:
         self._zones_version = -1
         self._boot_time = 0.0
         self._cruise_override: float | None = None
-        self._paused_at_m_s: float | None = None  # the track's speed when paused
-        self._surging = False  # resumed above the speed asked for, slowing to it when there
         placer = ItemPlacer(to_local, lambda: self.home.alt_amsl)
         implicit_takeoff = None if flavour.needs_mission_start else self._px4_takeoff_alt()
         self.store = store
@@ -316,10 +312,7 @@ class FlightController:
         strict = self.flavour.pauses_only_on_the_way
         if self.mode == FlightMode.AUTO and self.runner.running:
             if not strict or self.runner.on_the_way_to_a_place():
-                if self.runner.state != MissionState.PAUSED:
-                    self._paused_at_m_s = self.body.ground_speed
-                self._surging = False
-                self.runner.pause(now)
+                self.runner.pause(now, self.flavour.pauses_on_the_track)
                 return ACCEPTED
         elif self._airborne and (not strict or self.mode == FlightMode.GUIDED):
             self._run(Hold(), now)
@@ -331,31 +324,11 @@ class FlightController:
     def resume(self, now: float) -> int:
         """DO_PAUSE_CONTINUE 1: ArduCopter resumes only in AUTO and GUIDED."""
         if self.mode == FlightMode.AUTO and self.runner.running:
-            self._resume_track(now)
+            self.runner.resume(now)
         elif self.flavour.pauses_only_on_the_way and self.mode != FlightMode.GUIDED:
             self._say(mavlink.MAV_SEVERITY_INFO, "Failed to resume")
             return FAILED
         return ACCEPTED
-
-    def _resume_track(self, now: float) -> None:
-        """Go on from a pause; ArduCopter first at the speed the track had when paused."""
-        paused_at, self._paused_at_m_s = self._paused_at_m_s, None
-        asked = self.limits().cruise_speed
-        if self.flavour.resumes_at_paused_speed and paused_at is not None and paused_at > asked:
-            self.body.apply_limits(replace(self.limits(), cruise_speed=paused_at))
-            self._surging = True
-        self.runner.resume(now)
-
-    def _end_surge(self) -> None:
-        """A resumed track back at its paused speed slows to the speed asked for."""
-        if self._surging and (
-            self.body.ground_speed >= self.body.cruise - SURGE_REACHED_M_S
-            or self.mode != FlightMode.AUTO
-            or not self.runner.running
-        ):
-            self._surging = False
-            self.apply_limits()
-            self.body.set_cruise(self.limits().cruise_speed, quick=True)
 
     def change_speed(self, speed: float) -> int:
         """DO_CHANGE_SPEED: the leg being flown changes speed at once (AC_WPNav::
@@ -363,7 +336,6 @@ class FlightController:
         if not speed > 0 or not math.isfinite(speed):
             return FAILED
         self._cruise_override = speed
-        self._surging = False
         self.apply_limits()
         self.body.set_cruise(self.limits().cruise_speed)
         return ACCEPTED
@@ -373,7 +345,6 @@ class FlightController:
     def update(self, now: float) -> None:
         self.body.set_active(self.armed)
         if self.armed:
-            self._end_surge()
             if self.mode == FlightMode.AUTO:
                 self.runner.update(now)
             elif self._manoeuvre is not None and self._manoeuvre.update(self.body, now):

@@ -173,19 +173,28 @@ class MissionRunner:
             and not manoeuvre.arrived
         )
 
-    def pause(self, now: float) -> None:
-        """Slow to a stop along the track and hover (ArduCopter: AC_WPNav's pause)."""
+    def pause(self, now: float, on_the_track: bool) -> None:
+        """Stop and hover: ArduCopter `on_the_track` (AC_WPNav runs the track's clock down,
+        the item goes on), PX4 by slowing along the velocity."""
         self._paused = True
+        if on_the_track:
+            self._body.pause_track()
+            return
         self._manoeuvre = Stop()
         self._manoeuvre.start(self._body, now)
 
     def resume(self, now: float) -> None:
-        """Go on from a pause (nothing to do if not paused): the same leg, its speed picked
-        up at the stopping jerk (ArduCopter ramps the paused track's speed back up)."""
-        if self._paused:
-            self._paused = False
-            self._body.pick_up()
-            self._begin_item(now)
+        """Go on from a pause (nothing to do if not paused): on the track's clock running
+        up again if it was paused on it, else the same leg afresh, its speed picked up at
+        the stopping jerk."""
+        if not self._paused:
+            return
+        self._paused = False
+        if not isinstance(self._manoeuvre, Stop):
+            self._body.resume_track()
+            return
+        self._body.pick_up()
+        self._begin_item(now)
 
     def jump(self, now: float) -> None:
         """The current item was changed in flight (MISSION_SET_CURRENT): ArduCopter gives

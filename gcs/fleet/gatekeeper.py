@@ -71,7 +71,9 @@ class Gatekeeper:
             p, limit = progress[uav], limits[uav]
             gap = limit.at_m - p.s
             waited, own = uav in waited_on, self.limits[uav]
-            gate = self.rule.decide(self.gates[uav], gap, p.speed, p.accel, own, waited)
+            gate = self.rule.decide(
+                self.gates[uav], gap, p.speed, p.accel, own, waited, self.approach.get(uav)
+            )
             waits_for = limit.leader if gate != Gate.GO else None
             if gate == Gate.CREEP and self.gates[uav] != Gate.CREEP:
                 self.approach[uav] = self.rule.approach_speed(gap, own, waited)

@@ -190,7 +190,10 @@ def fly(
                 continue
             at, _ = limits_now[uav]
             gap, waited = at - vehicle.s, uav in waited_on
-            gate = rule.decide(vehicle.gate, gap, vehicle.v, vehicle.a, vehicle.limits, waited)
+            gate = rule.decide(
+                vehicle.gate, gap, vehicle.v, vehicle.a, vehicle.limits, waited,
+                vehicle.approach_m_s or None,
+            )  # fmt: skip
             if gate == Gate.CREEP and vehicle.gate != Gate.CREEP:
                 vehicle.approach_m_s = rule.approach_speed(gap, vehicle.limits, waited) or 0.0
             vehicle.gate = gate

@@ -30,6 +30,8 @@ DEFAULT_SPEED_M_S = 5.0
 BRAKE_REACH_S = 2.0
 """A brake reaches about this many seconds of the speed it starts from (SITL: 8.7 m from
 5 m/s, 20.1 m from 10 m/s)."""
+SPEEDING_UP_M_S2 = 0.05
+"""Above this a vehicle counts as speeding up (its S-curve may reach WPNAV_ACCEL)."""
 SPARE = 1.1
 """What the stopping distances keep in hand beyond what ArduCopter SITL measured."""
 
@@ -69,20 +71,50 @@ class CopterLimits:
         the mean of its ends."""
         return 0.5 * (v_from + v_to) * self.change_time(v_to - v_from, jerk)
 
-    def stopping_distance(self, speed: float, accel: float = 0.0, paused: bool = False) -> float:
+    def stopping_distance(
+        self,
+        speed: float,
+        accel: float = 0.0,
+        paused: bool = False,
+        track_m_s: float | None = None,
+    ) -> float:
         """Metres a vehicle told to stop covers from `speed`, while speeding up at `accel`
-        (which must first ramp down to nothing: the speed still grows meanwhile).
+        (which must first ramp down to nothing: the speed still grows meanwhile), on a
+        track flown at `track_m_s` (the mission's speed there; default its cruise).
 
-        A paused mission slows along its track at WPNAV's acceleration ramped with the
-        position controller's jerk (AC_WPNav); where ArduCopter will not pause, BRAKE
-        stops it, its speed decaying with a time constant of about 1.5 s (ModeBrake). On
-        SITL a pause stopped within 6.7 m from 5 m/s and 23.2 m from 10 m/s, a brake
-        within 8.7 m and 20.1 m: the further of the two, with a tenth to spare; `paused`
-        only, for a vehicle creeping mid-leg (where a pause is never refused)."""
-        pause = self.slowing_distance(speed, accel, 0.0, self.stop_jerk_m_s3)
+        A paused mission does not brake: it slows the clock of its S-curve (AC_WPNav), as
+        if its track speed fell from `track_m_s` to nothing at WPNAV's acceleration ramped
+        with the position controller's jerk, while the curve itself goes on speeding up
+        (`track_distance`). Where ArduCopter will not pause, BRAKE stops it, its speed
+        decaying with a time constant of about 1.5 s (ModeBrake). On SITL a pause stopped
+        within 6.7 m from 5 m/s and 23.2 m from 10 m/s, a brake within 8.7 m and 20.1 m;
+        a pause at 3.8 m/s, speeding up out of a corner on a 10 m/s track, 14.1 m (two
+        vehicles of the 10-UAV crossing came 4.9 m apart where braking was counted on):
+        the furthest of these, with a tenth to spare; `paused` only, for a vehicle creeping
+        mid-leg (where a pause is never refused)."""
+        track = max(speed, self.speed_m_s if track_m_s is None else track_m_s)
+        braking = self.slowing_distance(speed, accel, 0.0, self.stop_jerk_m_s3)
+        pause = max(braking, self.track_distance(speed, accel, track))
         peak = speed + max(0.0, accel) ** 2 / (2 * self.stop_jerk_m_s3)
         brake = 0.0 if paused else BRAKE_REACH_S * peak
         return SPARE * max(pause, brake)
+
+    def track_distance(self, speed: float, accel: float, track_m_s: float) -> float:
+        """How far a paused mission goes on: its S-curve's clock slows as a speed of
+        `track_m_s` would stop, so the curve runs on for that stop's distance over
+        `track_m_s` seconds, from `speed`, and if speeding up (`accel` > 0) at up to
+        WPNAV's acceleration until `track_m_s`. From cruise that is a plain stop; from a
+        corner or a start it is much further than braking would be (SITL, paused speeding
+        up on a 10 m/s track: 10.3 m from 2.05 m/s, 15.2 m from 4.05 m/s, 19.2 m from
+        6.08 m/s; bench/results/pause_vs_sitl.md)."""
+        if track_m_s <= 0:
+            return 0.0
+        runs_s = self.slowing_distance(track_m_s, 0.0, 0.0, self.stop_jerk_m_s3) / track_m_s
+        rising = self.accel_m_s2 if accel > SPEEDING_UP_M_S2 else 0.0
+        if rising <= 0 or speed + rising * runs_s <= track_m_s:
+            return speed * runs_s + rising * runs_s**2 / 2
+        up_s = (track_m_s - speed) / rising
+        return speed * up_s + rising * up_s**2 / 2 + track_m_s * (runs_s - up_s)
 
     def slowing_distance(
         self, speed: float, accel: float, to: float, jerk: float | None = None
@@ -241,14 +273,17 @@ class StoppingRule:
         accel: float,
         limits: CopterLimits,
         waited_on: bool,
+        approach_m_s: float | None = None,
     ) -> Gate:
-        """The next gate state, `gap_m` short of the point, at `speed` and `accel`."""
+        """The next gate state, `gap_m` short of the point, at `speed` and `accel`
+        (`approach_m_s`: the speed an approach (CREEP) was sent at)."""
         if gap_m > self.go_room_m(limits):
             return Gate.GO
         if gate == Gate.GO:
             return Gate.STOP if gap_m <= self.needed_m(speed, accel, limits) else Gate.GO
         if gate == Gate.CREEP:
-            needed = self.needed_m(speed, accel, limits, creeping=self._creeping(speed))
+            creeping = self._creeping(speed)
+            needed = self.needed_m(speed, accel, limits, creeping, approach_m_s or speed)
             return Gate.STOP if gap_m <= needed else gate
         approach = self.approach_speed(gap_m, limits, waited_on)
         return Gate.CREEP if speed <= self.creep_m_s and approach is not None else Gate.STOP
@@ -268,7 +303,8 @@ class StoppingRule:
 
     def _approach_room_m(self, speed: float, limits: CopterLimits) -> float:
         creeping = self._creeping(speed)
-        return self.needed_m(speed, 0.0, limits, creeping) + limits.change_distance(0.0, speed)
+        needed = self.needed_m(speed, 0.0, limits, creeping, track_m_s=speed)
+        return needed + limits.change_distance(0.0, speed)
 
     def _creeping(self, speed: float) -> bool:
         """Slow enough that a paused mission stops it (ArduCopter pauses anywhere mid-leg)."""
@@ -279,10 +315,21 @@ class StoppingRule:
         return _go_room_m(self, limits)
 
     def needed_m(
-        self, speed: float, accel: float, limits: CopterLimits, creeping: bool = False
+        self,
+        speed: float,
+        accel: float,
+        limits: CopterLimits,
+        creeping: bool = False,
+        track_m_s: float | None = None,
     ) -> float:
+        """Room to stop short from `speed` and `accel` on a track flown at `track_m_s`
+        (default the vehicle's cruise): the speed still grows while the command is on its
+        way."""
         buffer = self.creep_buffer_m if creeping else self.buffer_m
-        stopping = limits.stopping_distance(speed, accel, paused=creeping)
+        rising = min(max(accel, 0.0), limits.accel_m_s2)
+        track = limits.speed_m_s if track_m_s is None else track_m_s
+        reacted = min(speed + rising * self.reaction_s, max(speed, track))
+        stopping = limits.stopping_distance(reacted, accel, creeping, track)
         return stopping + speed * self.reaction_s + buffer
 
 

@@ -1,6 +1,7 @@
-"""The mock against ArduCopter SITL (V4.8.0-dev) at 5 and 10 m/s: pause and resume, BRAKE,
-a DO_CHANGE_SPEED forgotten on entering AUTO, MISSION_SET_CURRENT in flight, a landing
-asked for while lifting off, and the `holding` flag (sitl_mock as of 99914b7).
+"""The mock against ArduCopter SITL (V4.8.0-dev) at 5 and 10 m/s: pause and resume (also
+while speeding up), BRAKE, a DO_CHANGE_SPEED forgotten on entering AUTO,
+MISSION_SET_CURRENT in flight, a landing asked for while lifting off, and the `holding`
+flag.
 
 The SITL numbers are bench/results/kinematics_vs_sitl.txt's (bench/kinematics_vs_sitl.py:
 hover at 10 m, WP_SPD 10, WP_ACC 2.5, PSC_JERK_NE 5, the speed set by a DO_CHANGE_SPEED
@@ -330,7 +331,7 @@ SITL_BRAKE = {5.0: (8.68, 5.36), 10.0: (20.06, 6.64)}
 def test_a_paused_mission_stops_along_its_track_as_far_as_on_sitl(stop_and_go: StopAndGo):
     """SITL, DO_PAUSE_CONTINUE 0 at 4.99 and 10.02 m/s: standstill after 6.65 m in 2.32 s
     and 23.19 m in 4.24 s, straight on along the track (AC_WPNav's pause: the track speed
-    slowed at WP_ACC with PSC_JERK_NE). Mock: 6.25 m in 2.32 s, 22.50 m in 4.32 s, then
+    slowed at WP_ACC with PSC_JERK_NE). Mock: 6.24 m in 2.30 s, 22.49 m in 4.30 s, then
     standing still, PAUSED."""
     v, pause = stop_and_go.v, stop_and_go.pause
     metres, seconds = SITL_PAUSE[v]
@@ -348,7 +349,7 @@ def test_a_resumed_pause_picks_its_speed_up_faster_than_a_start_from_rest(
 ):
     """SITL, DO_PAUSE_CONTINUE 1 after standing: 50 % of V after 1.28 s at 5 m/s and 2.48 s
     at 10 m/s (the paused track's speed ramped up at PSC_JERK_NE), where a leg from rest
-    takes 2.72 s and 4.20 s (its S-curve at WP_JERK). Mock: 1.26 s and 2.26 s against
+    takes 2.72 s and 4.20 s (its S-curve at WP_JERK). Mock: 1.26 s and 2.28 s against
     2.24 s and 3.26 s from rest; it goes on to V along the same line."""
     go = stop_and_go
     assert sitl(SITL_RESUME_TO_HALF_S[go.v])[0] <= go.resume_to_half_s
@@ -374,8 +375,9 @@ def test_an_approach_asked_for_while_paused_first_resumes_at_the_paused_speed(
     """What the passing order's approach does (gcs.fleet.gatekeeper: a stopped vehicle is
     given a slow speed and resumed). SITL goes back up to the speed its track had when
     paused (4.86 m/s 2 s after the resume) and only then slows to the 1 m/s asked for:
-    13.1 m in 6 s where 1 m/s would be 6. Mock: 1.85 / 4.35 / 1.37 / 1.00 m/s after 1, 2,
-    4 and 6 s, 13.0 m. PX4 goes on at the speed asked for."""
+    13.1 m in 6 s where 1 m/s would be 6. Mock: 4.86 / 3.84 / 1.11 / 1.00 m/s after 1, 2,
+    4 and 6 s, 13.5 m (its surge comes a second sooner). PX4 goes on at the speed asked
+    for."""
     v = 5.0
     flight = Flight(autopilot, [takeoff_item(), speed_item(v), waypoint(0.0, 40 * v)])
     flight.hover()
@@ -394,6 +396,29 @@ def test_an_approach_asked_for_while_paused_first_resumes_at_the_paused_speed(
     assert max(speed.values()) >= 0.8 * v  # back up to the paused track's speed
     assert speed[6.0] == pytest.approx(SITL_APPROACH[6.0], abs=0.1)  # then the one asked for
     assert sitl(SITL_APPROACH_6S_M)[0] <= went <= sitl(SITL_APPROACH_6S_M)[1]
+
+
+SITL_PAUSE_SPEEDING_UP = {2.0: (10.30, 4.40), 4.0: (15.23, 4.40), 6.0: (19.24, 4.45)}
+"""Paused while speeding up from rest on a 10 m/s track, at about that speed: metres and
+seconds to standstill (bench/results/pause_vs_sitl.md)."""
+
+
+@pytest.mark.parametrize("at", sorted(SITL_PAUSE_SPEEDING_UP), ids=lambda v: f"{v:g} m/s")
+def test_a_mission_paused_while_speeding_up_goes_on_as_far_as_on_sitl(at: float) -> None:
+    """ArduCopter pauses by running its S-curve's clock down, not by braking: the curve
+    speeds on meanwhile, so a pause at 4 m/s on a 10 m/s track takes 15.2 m where a brake
+    at WP_ACC would take about 4 (what the passing order once counted on: two vehicles
+    of the 10-UAV crossing came 4.9 m apart on SITL). Mock: 10.9 m, 15.5 m, 18.9 m, about
+    4.3 s each."""
+    flight = Flight(mission=[takeoff_item(), speed_item(10.0), waypoint(0.0, 300.0)])
+    flight.hover()
+    assert flight.mode("AUTO") == ACCEPTED
+    flight.fly_until(lambda s: s.speed >= at, limit_s=30.0)
+    pause = halt(flight, lambda: flight.command(mavlink.MAV_CMD_DO_PAUSE_CONTINUE, PAUSE))
+    metres, seconds = SITL_PAUSE_SPEEDING_UP[at]
+    assert sitl(metres)[0] <= pause.metres <= sitl(metres)[1]
+    assert sitl(seconds)[0] <= pause.seconds <= sitl(seconds)[1]
+    assert max(s.speed for s in pause.samples) > pause.speed  # it sped on first
 
 
 def test_brake_stops_as_far_as_on_sitl(stop_and_go: StopAndGo):
