@@ -210,6 +210,7 @@ class Fleet:
             along,
             {uav: changed[uav] for uav in taken},
             {uav: missions[uav] for uav in taken},
+            starts_at,
         )
         self._follow(flight, taken, starts_at)
 

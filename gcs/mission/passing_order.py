@@ -21,6 +21,7 @@ flight says so (`narrowest_margin_m`).
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import itertools
 import math
 from collections.abc import Iterable, Mapping
@@ -81,6 +82,11 @@ class PlannedPath:
             np.concatenate([[t], self.leave[rest]]),
             self.radius_m,
         )
+
+    def starting_at(self, t: float) -> PlannedPath:
+        """The same path with its clock moved so that it starts at `t`."""
+        by = t - float(self.arrive[0])
+        return dataclasses.replace(self, arrive=self.arrive + by, leave=self.leave + by)
 
     def leaves(self, s: float) -> float:
         """When the plan has the UAV leave the point `s` metres along its path."""
