@@ -43,7 +43,9 @@ VARIANTS = {
     "resume-first": "the resume, then DO_CHANGE_SPEED",
     "before": "DO_CHANGE_SPEED just before the pause",
     "after-pause": "DO_CHANGE_SPEED just after the pause",
+    "restart": "once stopped, MISSION_SET_CURRENT (the leg afresh from rest), then DO_CHANGE_SPEED",
 }
+LEG_ITEM = 3
 
 
 def mission() -> list[tuple[int, int, float, float, float, float, int, int, float]]:
@@ -112,7 +114,11 @@ def _approach(
         elif step == "pausing" and speed < 0.05:
             if variant == "at-resume":
                 send(MAV.MAV_CMD_DO_CHANGE_SPEED, 1, PHASES[0][1], -1)
-            send(MAV.MAV_CMD_DO_PAUSE_CONTINUE, 1)
+            if variant == "restart":
+                link.mav.mission_set_current_send(target, 1, LEG_ITEM)
+                send(MAV.MAV_CMD_DO_CHANGE_SPEED, 1, PHASES[0][1], -1)
+            else:
+                send(MAV.MAV_CMD_DO_PAUSE_CONTINUE, 1)
             if variant == "resume-first":
                 send(MAV.MAV_CMD_DO_CHANGE_SPEED, 1, PHASES[0][1], -1)
             sent.append((PHASES[0][0], now))

@@ -104,6 +104,18 @@ class Fleet:
     def min_separation_m(self) -> float | None:
         return self._follower.min_separation_m
 
+    def places_on_plan(self) -> dict[str, float]:
+        """Where each vehicle is on its own plan: the plan's time at its place along its
+        path, from where a live replan continues it. (A vehicle's `plan_time_s` is on its
+        timed flight's clock, which the waits, speed changes and landings put behind the
+        plan's: taken for the plan's, it put a held vehicle of fuzzed flight 3034 seconds
+        ahead of where it was.)"""
+        paths = self.crew.flight.paths
+        return {
+            uav: paths[uav].leaves(m.along.s) - paths[uav].ahead_s
+            for uav, m in self.crew.members.items()
+        }
+
     def plan_time(self) -> float:
         """The plan's clock: seconds since the common start, on the vehicles' own time."""
         return self.crew.clock()
@@ -262,12 +274,13 @@ async def _upload(member: Member) -> UploadResult:
 def _member(uav: str, link: VehicleLink, flight: FlightPlan, settings: FleetSettings) -> Member:
     mission = flight.missions[uav]
     takeoff = mission.items[takeoff_index(mission.items)]
+    client = MissionClient(link, settings.transfer)
     return Member(
         uav,
         link,
         mission,
-        FlightActions(link, settings.commands, settings.readiness),
-        MissionClient(link, settings.transfer),
+        FlightActions(link, settings.commands, settings.readiness, client),
+        client,
         RouteTracker(uav, flight.visits(uav), (takeoff.lat, takeoff.lon)),
         PathProgress(flight.paths[uav], flight.frame),
     )

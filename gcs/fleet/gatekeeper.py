@@ -169,13 +169,19 @@ class GateCommander:
             self.applied[uav_id] = target
 
     async def _change(self, uav_id: str, old: Gate, new: Gate) -> None:
-        """Pause for STOP; otherwise the speed first (an approach's, or the mission's
-        again after one, even one that ended in a stop), then resume if stopped."""
+        """Pause for STOP; an approach from a stop (`FlightActions.approach`: no faster
+        than its speed); otherwise the speed first (an approach's, or the mission's again
+        after one, even one that ended in a stop), then resume if stopped."""
         actions = self._actions[uav_id]
         if new == Gate.STOP:
             await actions.pause_mission()
             return
         speed = self._approach.get(uav_id, self._rule.creep_m_s) if new == Gate.CREEP else None
+        if speed is not None and old == Gate.STOP:
+            self._slowed[uav_id] = math.nan  # unknown until the approach's speed is in
+            await actions.approach(speed)
+            self._slowed[uav_id] = speed
+            return
         if speed != self._slowed.get(uav_id):
             await actions.change_speed(self._cruise(uav_id) if speed is None else speed)
             self._slowed[uav_id] = speed

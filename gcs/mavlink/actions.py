@@ -27,6 +27,7 @@ from gcs.mavlink.errors import (
 )
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot
+from gcs.mavlink.mission_protocol import MissionClient
 from gcs.mavlink.modes import custom_mode, px4_main_sub
 
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
@@ -75,10 +76,13 @@ class FlightActions:
         link: VehicleLink,
         command_policy: CommandPolicy | None = None,
         readiness: ReadinessPolicy | None = None,
+        mission: MissionClient | None = None,
     ) -> None:
         self.link = link
         self.commands = command_policy or CommandPolicy()
         self.readiness = readiness or ReadinessPolicy()
+        self.mission = mission
+        """The vehicle's mission client (to fly an item afresh); none: resume instead."""
         self._braked_in_mission = False
         """Held by a brake out of AUTO, which only AUTO again undoes (its HEARTBEAT may still
         say AUTO for a moment after the switch)."""
@@ -257,6 +261,28 @@ class FlightActions:
             self._braked_in_mission = False
         else:
             await self.resume()
+
+    async def approach(self, speed_m_s: float) -> None:
+        """Send a vehicle stopped in its mission on at `speed_m_s`, no faster.
+
+        ArduCopter's paused S-curve keeps the speed it was paused at, and a resume runs
+        it up again whatever DO_CHANGE_SPEED asked for (SITL, paused at 5 m/s, resumed at
+        1 m/s: 4.9 m/s 2 s later, 13.1 m in 6 s). Its current item flown afresh from rest
+        (MISSION_SET_CURRENT), then slowed, keeps to the speed (SITL: 0.3 / 1.0 / 0.8 /
+        0.9 m/s 1, 2, 4, 6 s later, 4.2 m in 6 s; bench/results/approach_vs_sitl.md).
+        The resume after it changes nothing then, and sends the vehicle on should the
+        MISSION_SET_CURRENT have been lost. One braked out of its mission goes back to
+        AUTO, which flies its item afresh, and only then gets the speed (AUTO again would
+        give it its mission's). PX4 resumes at the speed asked for."""
+        if self._braked_in_mission:
+            await self.set_mode("AUTO", URGENT)
+            self._braked_in_mission = False
+            await self.change_speed(speed_m_s)
+            return
+        if self.mission is not None and self.link.autopilot == Autopilot.ARDUPILOT:
+            await self.mission.set_current(self.link.state.mission_seq)
+        await self.change_speed(speed_m_s)
+        await self.resume()
 
     async def back_to_mission(self) -> None:
         """AUTO again (the current item restarts), at the mission's speed."""

@@ -48,6 +48,9 @@ class PlannedPath:
     arrive: Floats  # (n,)
     leave: Floats  # (n,)
     radius_m: float
+    ahead_s: float = 0.0
+    """How far this clock runs ahead of the plan's: a live replan restarts a kept path
+    at the replan's moment (`starting_at`)."""
 
     @classmethod
     def of(
@@ -81,12 +84,15 @@ class PlannedPath:
             np.concatenate([[t], self.arrive[rest]]),
             np.concatenate([[t], self.leave[rest]]),
             self.radius_m,
+            self.ahead_s,
         )
 
     def starting_at(self, t: float) -> PlannedPath:
         """The same path with its clock moved so that it starts at `t`."""
         by = t - float(self.arrive[0])
-        return dataclasses.replace(self, arrive=self.arrive + by, leave=self.leave + by)
+        return dataclasses.replace(
+            self, arrive=self.arrive + by, leave=self.leave + by, ahead_s=self.ahead_s + by
+        )
 
     def leaves(self, s: float) -> float:
         """When the plan has the UAV leave the point `s` metres along its path."""
@@ -108,7 +114,7 @@ class PlannedPath:
         leave[k - 1] += wait
         arrive[k:] += wait
         leave[k:] += wait
-        return PlannedPath(self.uav_id, xy, arrive, leave, self.radius_m)
+        return PlannedPath(self.uav_id, xy, arrive, leave, self.radius_m, self.ahead_s)
 
     def _clock_at(self, s: float) -> tuple[int, float, float]:
         """(the first vertex beyond `s`, `s` kept on the path, when the UAV leaves it)."""

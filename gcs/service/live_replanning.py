@@ -48,7 +48,7 @@ async def replan_flight(
     frame = GridFrame.of(scenario)
     now = fleet.plan_time()
     positions = _positions(fleet, frame)
-    progress = {p.uav_id: p.plan_time_s for p in fleet.progress() if p.uav_id in positions}
+    progress = {uav: t for uav, t in fleet.places_on_plan().items() if uav in positions}
     result = await asyncio.to_thread(
         replan_live,
         scenario,

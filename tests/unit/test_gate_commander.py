@@ -35,6 +35,10 @@ class SlowLink:
     async def resume_mission(self) -> None:
         await self._send("resume")
 
+    async def approach(self, speed_m_s: float) -> None:
+        await self.change_speed(speed_m_s)
+        await self.resume_mission()
+
     async def pause_mission(self) -> str:
         await self._send("pause")
         return "mission paused"

@@ -373,6 +373,54 @@ async def test_a_mission_arducopter_will_not_pause_is_braked_and_resumed_in_auto
         await link.close()
 
 
+async def test_an_approach_flies_the_item_afresh_on_arducopter_not_its_paused_track() -> None:
+    """A paused ArduCopter mission resumed at a lower speed runs back up to the speed it
+    was paused at (SITL: 4.9 m/s for a 1 m/s approach); its item made current again
+    starts afresh from rest and keeps to the speed. One braked out of its mission goes
+    back to AUTO and gets the approach's speed after it, not its mission's."""
+    link, peer = await linked(silent)
+    current = 5
+
+    def arducopter(msg: Any) -> list[Any]:
+        if msg.get_type() == "MISSION_SET_CURRENT":
+            return [peer.codec.mission_current_encode(msg.seq)]
+        if msg.get_type() != "COMMAND_LONG":
+            return []
+        if msg.command == mavlink2.MAV_CMD_DO_PAUSE_CONTINUE and msg.param1 == 0 and braking:
+            ack = peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_FAILED)
+            return [ack, peer.codec.statustext_encode(6, b"Failed to pause")]
+        return [peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED)]
+
+    braking = False
+    peer.reply = arducopter
+    auto, armed = 3, mavlink2.MAV_MODE_FLAG_SAFETY_ARMED | 0x01
+    peer.send(peer.codec.heartbeat_encode(2, 3, armed, auto, mavlink2.MAV_STATE_ACTIVE))
+    peer.send(peer.codec.mission_current_encode(current))
+    try:
+        while link.state.mode != "AUTO" or link.state.mission_seq != current:
+            await asyncio.sleep(0.01)
+        actions = FlightActions(link, mission=MissionClient(link))
+        actions.mission_speed_m_s = 5.0
+        await actions.pause_mission()
+        await actions.approach(1.0)
+        assert [m.seq for m in peer.sent("MISSION_SET_CURRENT")] == [current]
+        commands = [(m.command, m.param1, m.param2) for m in peer.sent("COMMAND_LONG")]
+        pause, speed = mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, mavlink2.MAV_CMD_DO_CHANGE_SPEED
+        assert commands == [(pause, 0, 0), (speed, 1, 1.0), (pause, 1, 0)]
+
+        peer.heard.clear()
+        braking = True
+        await actions.pause_mission()  # "Failed to pause": braked
+        await actions.approach(2.0)
+        commands = [(m.command, m.param1, m.param2) for m in peer.sent("COMMAND_LONG")]
+        set_mode, brake = mavlink2.MAV_CMD_DO_SET_MODE, mavlink2.COPTER_MODE_BRAKE
+        assert commands == [(pause, 0, 0), (set_mode, 1, brake), (set_mode, 1, auto),
+                            (speed, 1, 2.0)]  # fmt: skip
+        assert peer.sent("MISSION_SET_CURRENT") == []
+    finally:
+        await link.close()
+
+
 @pytest.mark.parametrize("climbs", [True, False], ids=["lifting off", "still on the ground"])
 async def test_a_resent_take_off_refused_as_already_flying_is_a_take_off(climbs: bool) -> None:
     """20 % loss each way loses one command's ACK in five: the first NAV_TAKEOFF lifts the

@@ -66,6 +66,27 @@ def test_where_the_plan_flies_two_side_by_side_the_reach_is_what_the_plan_keeps(
     assert order.narrowest_margin_m({"a": 3.0, "b": 3.0}) == pytest.approx(0.3 - order.step_m)
 
 
+def test_a_kept_path_restarted_at_a_replan_keeps_the_order_its_vehicle_can_keep() -> None:
+    """A live replan continues a vehicle the order held back from where it is, at the
+    replan's moment (as the replan takes it). On the old clock b (held back 3 s) seemed
+    to cross just when the replanned a does, and the order kept no more than the plan did
+    at once (fuzzed flight 3034: 3.4 m); restarted at the replan, b crosses 3 s after a
+    and waits for it."""
+    now = 20.0
+    b = _crossing_pair(offset_s=13.0)["b"]  # north through (50, 0), 5 m/s, from t = 13
+    a = PlannedPath("a", np.array([[35.0, 0.0], [100.0, 0.0]]), np.array([now, now + 13.0]),
+                    np.array([now, now + 13.0]), 3.0)  # fmt: skip  # replanned: (50, 0) at 23
+    rest = b.after(20.0)  # b has flown 20 m
+    assert rest.arrive[0] == pytest.approx(17.0)  # on the old clock, 3 s ago
+    assert PassingOrder.derive([a, rest], margin_m=0.5).reach_m[("a", "b")] < 6.0
+    restarted = rest.starting_at(now)
+    assert restarted.ahead_s == pytest.approx(3.0)
+    assert restarted.leaves(30.0) - restarted.ahead_s == pytest.approx(b.leaves(50.0))
+    order = PassingOrder.derive([a, restarted], margin_m=0.5)
+    assert order.reach_m[("a", "b")] == pytest.approx(6.5)
+    assert order.limit("b", {"a": 0.0, "b": 0.0}).leader == "a"
+
+
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(PLANS)
 def test_every_wait_points_forward_in_the_plans_time(family_seed: tuple[str, int]) -> None:

@@ -421,6 +421,32 @@ def test_a_mission_paused_while_speeding_up_goes_on_as_far_as_on_sitl(at: float)
     assert max(s.speed for s in pause.samples) > pause.speed  # it sped on first
 
 
+SITL_APPROACH_AFRESH = {1.0: 0.26, 2.0: 0.96, 4.0: 0.80, 6.0: 0.94}
+"""Paused at 5 m/s, standing, MISSION_SET_CURRENT to its leg then DO_CHANGE_SPEED 1 m/s:
+the speed that many seconds later (bench/results/approach_vs_sitl.md, `restart`)."""
+SITL_APPROACH_AFRESH_6S_M = 4.2
+
+
+def test_an_approach_flown_afresh_keeps_to_the_speed_asked_for() -> None:
+    """What the passing order's approach does on ArduCopter (`FlightActions.approach`):
+    the leg flown afresh from rest, then slowed, goes at the speed asked for, with no
+    surge back to the paused track's speed. SITL: 0.26 / 0.96 / 0.80 / 0.94 m/s after 1,
+    2, 4 and 6 s, 4.2 m in 6 s. Mock: 0.49 / 1.00 / 1.00 / 1.00 m/s, 5.0 m."""
+    v = 5.0
+    flight = Flight("ardupilot", [takeoff_item(), speed_item(v), waypoint(0.0, 40 * v)])
+    flight.hover()
+    assert flight.mode("AUTO") == ACCEPTED
+    flight.fly_until(lambda s: s.north >= 10 * v, limit_s=30.0)
+    halt(flight, lambda: flight.command(mavlink.MAV_CMD_DO_PAUSE_CONTINUE, PAUSE))
+    start = flight.now
+    flight.deliver(mavlink.MAVLink_mission_set_current_message(1, 1, 3))
+    assert flight.command(mavlink.MAV_CMD_DO_CHANGE_SPEED, 1, 1.0, -1) == ACCEPTED
+    went = flight.fly(6.0)
+    assert max(s.speed for s in went) <= 1.0 + 1e-6
+    assert went[-1].speed == pytest.approx(SITL_APPROACH_AFRESH[6.0], abs=0.1)
+    assert went[-1].north - start.north <= 1.25 * SITL_APPROACH_AFRESH_6S_M
+
+
 def test_brake_stops_as_far_as_on_sitl(stop_and_go: StopAndGo):
     """SITL, BRAKE at 4.97 and 10.01 m/s: standstill after 8.68 m and 20.06 m (BRAKE's
     deceleration asked in proportion to the speed, ramped at PSC_JERK_NE). Mock: 9.08 m
