@@ -64,35 +64,52 @@ class Flight:
 
 
 def fly(connection: str) -> Flight:
+    intervals = {33: 5e4, 42: 2e5}  # GLOBAL_POSITION_INT 20 Hz, MISSION_CURRENT 5 Hz
+    with mission_started(connection, mission(), intervals) as (link, target):
+        return _record(link, target)
+
+
+@contextlib.contextmanager
+def mission_started(
+    connection: str, items: list, intervals_us: dict[int, float]
+) -> Iterator[tuple[mavutil.mavfile, int]]:
+    """A vehicle once booted: the messages asked for at their intervals, `items` uploaded
+    (with (frame, command, p1-p4, x, y, z) per item), armed in GUIDED and its mission
+    started in AUTO; the link and the vehicle's system id, closed on the way out."""
     link = mavutil.mavlink_connection(connection, source_system=250)
     try:
-        return _fly(link)
+        link.wait_heartbeat(timeout=60)
+        target = link.target_system
+        while True:  # boot over: missions are accepted
+            beat = link.recv_match(type="HEARTBEAT", blocking=True, timeout=5)
+            if beat is not None and beat.system_status != MAV.MAV_STATE_BOOT:
+                break
+        for message_id, interval in intervals_us.items():
+            link.mav.command_long_send(
+                target, 1, MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id, interval, 0, 0, 0, 0, 0
+            )
+        upload_items(link, target, items)
+        _command_until_accepted(link, target, MAV.MAV_CMD_DO_SET_MODE, 1, 4)  # GUIDED
+        _command_until_accepted(link, target, MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+        _command_until_accepted(link, target, MAV.MAV_CMD_DO_SET_MODE, 1, 3)  # AUTO
+        _command_until_accepted(link, target, MAV.MAV_CMD_MISSION_START)
+        yield link, target
     finally:
         link.close()
 
 
-def _fly(link: mavutil.mavfile) -> Flight:
-    link.wait_heartbeat(timeout=60)
-    target = link.target_system
-    while True:  # boot over: missions are accepted
-        beat = link.recv_match(type="HEARTBEAT", blocking=True, timeout=5)
-        if beat is not None and beat.system_status != MAV.MAV_STATE_BOOT:
-            break
-    for message_id in (33, 42):  # GLOBAL_POSITION_INT 20 Hz, MISSION_CURRENT 5 Hz
-        rate_us = 5e4 if message_id == 33 else 2e5
-        link.mav.command_long_send(
-            target, 1, MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, message_id, rate_us, 0, 0, 0, 0, 0
-        )
-    _upload(link, target)
-    _command_until_accepted(link, target, MAV.MAV_CMD_DO_SET_MODE, 1, 4)  # GUIDED
-    _command_until_accepted(link, target, MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-    _command_until_accepted(link, target, MAV.MAV_CMD_DO_SET_MODE, 1, 3)  # AUTO
-    _command_until_accepted(link, target, MAV.MAV_CMD_MISSION_START)
-    return _record(link, target)
-
-
-def _upload(link: mavutil.mavfile, target: int) -> None:
-    upload_items(link, target, mission())
+def leg_north(speed_m_s: float, length_m: float, alt_m: float) -> list:
+    """Take off at HOME to `alt_m`, fly `length_m` north at `speed_m_s`, land there."""
+    lat, lon, _ = pymap3d.enu2geodetic(0.0, length_m, 0.0, *HOME)
+    far = (int(lat * 1e7), int(lon * 1e7))
+    home = (int(HOME[0] * 1e7), int(HOME[1] * 1e7))
+    return [
+        (MAV.MAV_FRAME_GLOBAL, MAV.MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, *home, 0.0),
+        (REL, MAV.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, *home, alt_m),
+        (MAV.MAV_FRAME_MISSION, MAV.MAV_CMD_DO_CHANGE_SPEED, 1, speed_m_s, -1, 0, 0, 0, 0),
+        (REL, MAV.MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, *far, alt_m),
+        (REL, MAV.MAV_CMD_NAV_LAND, 0, 0, 0, 0, *far, 0.0),
+    ]
 
 
 def upload_items(link: mavutil.mavfile, target: int, items: list) -> None:

@@ -26,54 +26,23 @@ from mock_vs_sitl import (
     HOME,
     MOCK_URL,
     SITL_URL,
-    _command_until_accepted,
+    leg_north,
+    mission_started,
     sitl_and_mock,
-    upload_items,
 )
 from pymavlink import mavutil
 
 MAV = mavutil.mavlink
-REL = MAV.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 TRACK_M_S, LEG_M, ALT_M = 10.0, 300.0, 10.0
 PAUSE_AT_M_S = (2.0, 4.0, 6.0)
 STILL_M_S = 0.1
 LEG_ITEM = 3
 
 
-def mission() -> list[tuple[int, int, float, float, float, float, int, int, float]]:
-    lat, lon, _ = pymap3d.enu2geodetic(0.0, LEG_M, 0.0, *HOME)
-    far = (int(lat * 1e7), int(lon * 1e7))
-    home = (int(HOME[0] * 1e7), int(HOME[1] * 1e7))
-    return [
-        (MAV.MAV_FRAME_GLOBAL, MAV.MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, *home, 0.0),
-        (REL, MAV.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, *home, ALT_M),
-        (MAV.MAV_FRAME_MISSION, MAV.MAV_CMD_DO_CHANGE_SPEED, 1, TRACK_M_S, -1, 0, 0, 0, 0),
-        (REL, MAV.MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, *far, ALT_M),
-        (REL, MAV.MAV_CMD_NAV_LAND, 0, 0, 0, 0, *far, 0.0),
-    ]
-
-
 def fly(connection: str) -> list[tuple[float, float, float, float]]:
     """(speed, acceleration, metres, seconds) of each pause."""
-    link = mavutil.mavlink_connection(connection, source_system=250)
-    try:
-        link.wait_heartbeat(timeout=60)
-        target = link.target_system
-        while True:
-            beat = link.recv_match(type="HEARTBEAT", blocking=True, timeout=5)
-            if beat is not None and beat.system_status != MAV.MAV_STATE_BOOT:
-                break
-        link.mav.command_long_send(
-            target, 1, MAV.MAV_CMD_SET_MESSAGE_INTERVAL, 0, 33, 5e4, 0, 0, 0, 0, 0
-        )
-        upload_items(link, target, mission())
-        _command_until_accepted(link, target, MAV.MAV_CMD_DO_SET_MODE, 1, 4)  # GUIDED
-        _command_until_accepted(link, target, MAV.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-        _command_until_accepted(link, target, MAV.MAV_CMD_DO_SET_MODE, 1, 3)  # AUTO
-        _command_until_accepted(link, target, MAV.MAV_CMD_MISSION_START)
-        return _pauses(link, target)
-    finally:
-        link.close()
+    with mission_started(connection, leg_north(TRACK_M_S, LEG_M, ALT_M), {33: 5e4}) as flying:
+        return _pauses(*flying)
 
 
 def _pauses(link: mavutil.mavfile, target: int) -> list[tuple[float, float, float, float]]:
