@@ -41,6 +41,10 @@ from tests.reference import matlab_ports as ports
 
 ALPHA = 0.001
 SEEDS = 20
+PORT_SEEDS = 12
+"""The ports are plain Python loops, 10-40 times slower than planner: fewer runs of them.
+The test keeps its power: the mutant above (a linear schedule) against 12 port runs still
+gives p ~ 3e-6 on sphere."""
 PORT_SEED0 = 10_000  # the ports use other seeds, so that the two samples are independent
 PROBLEMS = {"sphere": (sphere, -100.0, 100.0), "rastrigin": (rastrigin, -5.12, 5.12)}
 # (dim, population, iterations). The ports are plain Python loops: ALO (a coin flip per
@@ -99,7 +103,7 @@ def test_final_costs_match_the_literal_port(name: str, problem: str) -> None:
                 np.random.default_rng(PORT_SEED0 + seed),
                 **options,
             )[0]
-            for seed in range(SEEDS)
+            for seed in range(PORT_SEEDS)
         ]
     )
     p = _mann_whitney_p(ours, theirs)
