@@ -86,15 +86,18 @@ class Flight:
         await self.upload()
         answer = await self.post("start")
         assert answer.status_code == 202, answer.text
-        await self.wait_state("flying", timeout=120)
+        await self.wait_state("flying", timeout=120, every=0.1)
 
-    async def wait_state(self, *states: str, timeout: float = 600) -> str:
+    async def wait_state(self, *states: str, timeout: float = 600, every: float = 1.0) -> str:
+        """The first of `states` the flight is in, looked at every `every` simulated
+        seconds (each look is a request: at 0.1 s they cost more than the flight)."""
+
         async def reached() -> str | None:
             state = await self.state()
             return state if state in states else None
 
         try:
-            return await until(reached, timeout, f"flight {self.id} {states}")
+            return await until(reached, timeout, f"flight {self.id} {states}", every=every)
         except AssertionError as exc:  # say where the flight is stuck
             live = (await self.client.get(f"/flights/{self.id}/live-state")).json()
             events = await self.events()

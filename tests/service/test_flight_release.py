@@ -111,7 +111,7 @@ async def _one_flight(
         state = await _state(client, flight)
         return state if state in ("landed", "ended", "interrupted") else None
 
-    assert await until(ended, 600, "the flight's end") == "landed"
+    assert await until(ended, 600, "the flight's end", every=1.0) == "landed"
 
 
 async def _state(client: httpx.AsyncClient, flight: str) -> str:

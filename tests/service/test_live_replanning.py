@@ -68,7 +68,7 @@ async def test_an_object_on_one_path_replans_only_that_uav(gcs: InProcessService
         state = str((await client.get(f"/flights/{fid}")).json()["state"])
         return state if state in ("landed", "ended", "aborted") else None
 
-    assert await until(ended, 600, "landing") == "landed"
+    assert await until(ended, 600, "landing", every=1.0) == "landed"
     kinds = [e["kind"] for e in (await client.get(f"/flights/{fid}/events")).json()]
     assert "ObjectReported" in kinds
 

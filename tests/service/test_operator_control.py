@@ -123,7 +123,7 @@ async def test_abort_preempts_an_upload_in_progress(gcs: InProcessService) -> No
     flight = await Flight.make(gcs.client, await _fleet(gcs, faults=slow))
     await until(flight.online, 30, "every vehicle online")
     uploading = asyncio.ensure_future(flight.post("upload"))
-    await flight.wait_state("uploading", timeout=30)
+    await flight.wait_state("uploading", timeout=30, every=0.1)
     await _abort_lands_everyone(flight)
     answer = await asyncio.wait_for(uploading, 60)
     assert answer.status_code == 200
@@ -135,7 +135,7 @@ async def test_abort_preempts_arming(gcs: InProcessService) -> None:
     flight = await Flight.make(gcs.client, never_ready)
     await flight.upload()
     assert (await flight.post("start")).status_code == 202
-    await flight.wait_state("starting")
+    await flight.wait_state("starting", every=0.1)
     await _abort_lands_everyone(flight)
 
 
@@ -273,7 +273,7 @@ async def test_concurrent_requests_on_one_flight_take_turns(gcs: InProcessServic
     assert all(a.status_code == 200 for a in uploads), [a.text for a in uploads]
     assert await flight.state() == "uploaded"
     assert (await flight.post("start")).status_code == 202
-    await flight.wait_state("flying", timeout=120)
+    await flight.wait_state("flying", timeout=120, every=0.1)
     answers = await asyncio.gather(*(flight.post(a) for a in ["pause", "continue"] * 4))
     assert all(a.status_code in (200, 409) for a in answers), [a.text for a in answers]
     final = await flight.post("continue")

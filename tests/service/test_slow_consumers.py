@@ -112,7 +112,7 @@ async def test_a_slow_store_gets_every_event_in_order_and_the_flight_flies_on(
     services(gcs).events.store = store
 
     await flight.post("start")  # from now on storage takes nothing
-    await flight.wait_state("flying", timeout=120)
+    await flight.wait_state("flying", timeout=120, every=0.1)
     size = 3 * LISTENER_QUEUE  # beyond a listener's queue, the memory, a batch
     burst(fleet, 0, size)
     during = await metrics(gcs)
@@ -188,7 +188,7 @@ async def test_a_slow_live_client_is_told_how_many_messages_it_missed_and_they_a
     async with gcs.websocket(live) as fast, slow_websocket(gcs, live, gate) as slow:
         reading = asyncio.ensure_future(read_to_the_end(fast))
         await flight.post("start")
-        await flight.wait_state("flying", timeout=120)
+        await flight.wait_state("flying", timeout=120, every=0.1)
         burst(fleet_of(gcs, flight.id), 0, LISTENER_QUEUE - 100)  # the fast one keeps up
         await flight.wait_state("landed", timeout=600)
         told = [m for m in await reading if m["type"] != "state"]
