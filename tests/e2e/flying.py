@@ -45,10 +45,12 @@ def wait_for(
     condition: Callable[[], T | Literal[False] | None],
     timeout: float,
     what: str,
-    every: float = 0.05,
+    every: float = 0.2,
 ) -> T:
     """The first truthy value of `condition()`, polled; AssertionError after `timeout`.
-    (A condition's False or None is waited past, so it is no part of the value's type.)"""
+    (A condition's False or None is waited past, so it is no part of the value's type.)
+    Most conditions are requests to a service that flies a fleet meanwhile, on the same
+    two cores: five a second are plenty."""
     deadline = time.monotonic() + timeout
     while True:
         value = condition()

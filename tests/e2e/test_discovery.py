@@ -256,7 +256,7 @@ def test_announced_vehicles_that_fall_silent_are_forgotten(tmp_path: Path) -> No
                     fake.sendto(forged(sysid), ("127.0.0.1", port))
                 return listed() == {201, 202, 203}
 
-            wait_for(announced, 30, "three announced", every=0.2)
+            wait_for(announced, 30, "three announced")
             wait_for(lambda: not listed(), 30, "the silent ones forgotten")
     finally:
         service.stop()

@@ -72,7 +72,7 @@ def test_the_survivor_takes_over_a_killed_services_flight(
         assert note.startswith("taken over by service b at " + b.url + " from a:"), note
         # Nobody keeps the passing order now: b pauses every mission still flown.
         every = len(flight.vehicle_ids)
-        wait_for(lambda: len(_unfollowed_paused(on_b, flight.id)) == every, 30, "all paused")
+        wait_for(lambda: len(_unfollowed_paused(on_b, flight.id)) == every, 30, "all paused", 0.5)
         assert all(e["ok"] for e in _unfollowed_paused(on_b, flight.id))
 
         wait_for(
@@ -84,7 +84,7 @@ def test_the_survivor_takes_over_a_killed_services_flight(
         )
         # b resumes it by itself once every vehicle is heard and paused (each stopped,
         # then let go in the passing order); the operator's hold and continue work on it.
-        resumed = wait_for(lambda: _auto_resumed(on_b, flight.id), 60, "b's resume")
+        resumed = wait_for(lambda: _auto_resumed(on_b, flight.id), 60, "b's resume", 0.5)
         assert resumed["ok"], resumed
         held = flight.post("pause")
         assert held.status_code == 200, held.text
