@@ -42,7 +42,7 @@ from tests.reference import matlab_ports as ports
 ALPHA = 0.001
 SEEDS = 20
 PORT_SEEDS = 12
-"""The ports are plain Python loops, 10-40 times slower than planner: fewer runs of them.
+"""The ports are plain Python loops, 5-17 times slower than planner: fewer runs of them.
 The test keeps its power: the mutant above (a linear schedule) against 12 port runs still
 gives p ~ 3e-6 on sphere."""
 PORT_SEED0 = 10_000  # the ports use other seeds, so that the two samples are independent
