@@ -16,10 +16,8 @@ own GLOBAL_POSITION_INT (its own clock). Run where a SITL binary is built:
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 import pymap3d
@@ -30,6 +28,7 @@ from mock_vs_sitl import (
     leg_north,
     mission_started,
     sitl_and_mock,
+    sitl_parser,
 )
 from pymavlink import mavutil
 
@@ -116,9 +115,7 @@ def describe(track: np.ndarray, sent: list[tuple[str, float]]) -> dict[str, str]
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sitl", type=Path, required=True, help="ArduCopter SITL binary")
-    parser.add_argument("--speedup", type=float, default=2.0)
+    parser = sitl_parser(__doc__)
     parser.add_argument("--variant", choices=VARIANTS, default="at-resume")
     parser.add_argument("--only-sitl", action="store_true", help="leave the mock out")
     args = parser.parse_args()

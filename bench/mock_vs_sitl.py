@@ -223,11 +223,16 @@ def sitl_and_mock(sitl_binary: Path, speedup: float) -> Iterator[None]:
                 process.wait(timeout=10)
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def sitl_parser(doc: str) -> argparse.ArgumentParser:
+    """The arguments every SITL-beside-mock script takes: the binary and its speed-up."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
     parser.add_argument("--sitl", type=Path, required=True, help="ArduCopter SITL binary")
     parser.add_argument("--speedup", type=float, default=2.0)
-    args = parser.parse_args()
+    return parser
+
+
+def main() -> int:
+    args = sitl_parser(__doc__).parse_args()
     with sitl_and_mock(args.sitl, args.speedup):
         rows = {"ArduCopter SITL": summary(fly(SITL_URL))}
         rows["sitl_mock"] = summary(fly(MOCK_URL))

@@ -15,10 +15,8 @@ GLOBAL_POSITION_INT (its own clock). Run where a SITL binary is built:
 
 from __future__ import annotations
 
-import argparse
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 import pymap3d
@@ -29,6 +27,7 @@ from mock_vs_sitl import (
     leg_north,
     mission_started,
     sitl_and_mock,
+    sitl_parser,
 )
 from pymavlink import mavutil
 
@@ -80,10 +79,7 @@ def _pauses(link: mavutil.mavfile, target: int) -> list[tuple[float, float, floa
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sitl", type=Path, required=True, help="ArduCopter SITL binary")
-    parser.add_argument("--speedup", type=float, default=2.0)
-    args = parser.parse_args()
+    args = sitl_parser(__doc__).parse_args()
     with sitl_and_mock(args.sitl, args.speedup):
         rows = {"ArduCopter SITL": fly(SITL_URL), "sitl_mock": fly(MOCK_URL)}
     print(f"paused while speeding up on a {TRACK_M_S:g} m/s track:")
