@@ -75,6 +75,7 @@ def finish(
         first_safe_cost=_rounded(state.first_safe_cost, 6),
         cost=round(final_cost, 6),
         improvement=_rounded(improvement, 6),
+        complete_start=state.complete_start,
     )
     settings = state.settings
     return Plan(

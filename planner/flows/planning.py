@@ -36,6 +36,7 @@ class Phase(StrEnum):
     """Why a UAV's path changes: what a plan's `replanned` and the progress reports say."""
 
     SAFE_START = "safe start"  # anytime: the white hole's exploration made constructive
+    COMPLETE_START = "complete start"  # anytime: the whole fleet searched at once (LaCAM)
     CONFLICT = "uav conflict"  # exploit: the black hole (eq. 8) resolves a conflict
     OBJECT = "non-UAV object"  # wormhole (eq. 9): an object touches the path
     IMPROVEMENT = "improvement"  # the fleet is safe: a cheaper flight (qos)
@@ -162,6 +163,7 @@ class PlanningState:
     first_safe_s: float | None = None
     first_safe_cost: float | None = None
     converged_runs: int = 0
+    complete_start: str | None = None  # what it did, if the safe start left conflicts
     # each UAV's search cost with no other UAV about, per path and map (identities)
     lone_costs: dict[str, tuple[Trajectory, Map, float]] = field(default_factory=dict)
 
@@ -197,7 +199,7 @@ class PlanningState:
         """Continue from the cheapest fleet that passed the exact check (what the
         improvement phase starts from)."""
         assert self.best is not None
-        if self.best.paths != self.paths:
+        if any(self.paths[u] is not flight for u, flight in self.best.paths.items()):
             self.paths = dict(self.best.paths)
             self.table = ConflictTable.build(self.paths, self.radii, world.blocked)
         self.replans = {u: list(r) for u, r in self.best.replans.items()}

@@ -49,6 +49,11 @@ class Metrics(_Out):
         default=None,
         description="share of the first safe plan's cost the optimizer took off afterwards",
     )
+    complete_start: str | None = Field(
+        default=None,
+        description="what the complete start did when the safe start left conflicts "
+        "(null: it was not needed)",
+    )
 
 
 class Plan(_Out):
