@@ -130,14 +130,17 @@ class Engine:
         """If the fleet as it stands passes the exact check, remember it (the first time,
         and whenever it is the cheapest yet)."""
         state = self.state
-        if not self.flow.fleet_passes(state):
-            return
-        cost = state.fleet_cost()
+        if self.flow.fleet_passes(state):
+            self.record(state.paths, state.replans)
+
+    def record(self, paths: dict[str, Trajectory], replans: dict[str, list[str]]) -> None:
+        """Remember a safe fleet: the first one, and whenever it is the cheapest yet."""
+        state = self.state
+        cost = state.fleet_cost(paths)
         if state.first_safe_s is None:
             state.first_safe_s, state.first_safe_cost = state.budget.elapsed(), cost
         if state.best is None or cost < state.best.cost:
-            replans = {u: list(r) for u, r in state.replans.items()}
-            state.best = Best(dict(state.paths), replans, cost)
+            state.best = Best(dict(paths), {u: list(r) for u, r in replans.items()}, cost)
 
     def step(self, uav: str, phase: Phase, world: Map) -> None:
         """One change made without the optimizer, as a run of one iteration, for the

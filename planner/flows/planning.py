@@ -180,17 +180,21 @@ class PlanningState:
         """The cost of a conflict: more than any detour on this map."""
         return float(100.0 * (world.blocked.shape[0] + world.blocked.shape[1] + 10))
 
-    def base_cost(self, uav: str) -> float:
-        """The objective of `uav`'s current path without any penalty, from its trajectory."""
-        trajectory, spec = self.paths[uav], self.specs[uav]
+    def base_cost(self, uav: str, trajectory: Trajectory | None = None) -> float:
+        """The objective of `uav`'s path (its current one if None) without any penalty."""
+        spec = self.specs[uav]
+        if trajectory is None:
+            trajectory = self.paths[uav]
         if self.settings.objective == "qos":
             return flight_cost(trajectory, spec.speed)
         deviation = float(np.hypot(*(trajectory.end - np.array(spec.goal))))
         count = len(self.specs) + len(self.objects)
         return float(paper_fitness(count, trajectory.length, deviation, self.start_distance[uav]))
 
-    def fleet_cost(self) -> float:
-        return self.scale * sum(self.base_cost(u) for u in self.paths)
+    def fleet_cost(self, paths: dict[str, Trajectory] | None = None) -> float:
+        """The plan cost of `paths` (the current ones if None)."""
+        paths = self.paths if paths is None else paths
+        return self.scale * sum(self.base_cost(u, t) for u, t in paths.items())
 
     def check(self) -> SafetyReport:
         return check_plan(self.paths, self.radii, self.scenario.blocked(), self.objects)

@@ -182,3 +182,15 @@ def test_radii_too_large_for_lockstep_are_not_given_the_complete_start() -> None
 
 def _flight(points: list[list[float]]) -> Trajectory:
     return Trajectory(np.array(points))
+
+
+def test_the_complete_starts_flights_are_returned_when_no_budget_is_left_for_more() -> None:
+    """A budget spent before the complete start ends the safe start at once: its flights
+    are the plan, and the exact check passes them (lockstep, radius 0.3)."""
+    scenario = random_scenario(3, size=8, uavs=7, objects=0)
+    result = plan(scenario, PlannerSettings(population=10, iterations=20, time_budget_s=1e-4))
+    assert result.feasible and result.metrics.complete_start is not None
+    assert all(u.replanned[-1:] == ["complete start"] for u in result.uavs)
+    flights = {u.id: _flight(u.trajectory) for u in result.uavs}
+    report = check_plan(flights, {u.id: u.radius for u in scenario.uavs}, scenario.blocked(), [])
+    assert report.safe and report.min_separation >= np.sqrt(0.5) - 1e-6
