@@ -79,6 +79,8 @@ MIN_EXCESS = 0.1  # of its lone path's cost: a UAV with less excess than this is
 MIN_SHARE = 1e-2  # unless its excess is at least this share of the plan's cost
 DENSE = 0.1  # UAVs per free cell from which the complete start runs first: MovingAI's
 # room and maze maps with 100 agents (0.15), where the safe start took 8 to 40 s to finish
+SEARCHES_BEFORE_COMPLETE = 4  # space-time searches: the benchmark's families need at most 2
+# (random-32-32-10 with 50 agents 4), MovingAI's maze with 25 agents 7 taking 1.2 s, 50 agents 16
 SAFE_START_SHARE = 50.0  # percent of the budget a safe start may take with a safe plan in hand
 LONG_TRIP = 100.0  # cells of lone path from which the others are asked to make way first
 PULLED_PIECES = (1, 4, 16)  # a search's path pulled whole and in runs: the cheapest is kept
@@ -190,7 +192,8 @@ def safe_start(engine: Engine, world: Map, free: NDArray[np.bool_], start: Budge
     """Step 2 made constructive: the highest-priority UAV in trouble (eq. 7) is made
     safe against the others; one that cannot be waits for another one's change.
 
-    On a dense fleet (DENSE), and otherwise the first time a UAV cannot be made safe, the
+    When the fleet is dense (DENSE), when this loop has needed SEARCHES_BEFORE_COMPLETE
+    space-time searches, or when a UAV cannot be made safe, whichever comes first, the
     complete start plans the whole fleet at once beside it (`planner.flows.complete_start`):
     a safe plan in hand, whatever this loop then manages. From then on this loop is
     improvement, and it ends at half the time budget (the other half is the improvement
@@ -198,8 +201,13 @@ def safe_start(engine: Engine, world: Map, free: NDArray[np.bool_], start: Budge
     state = engine.state
     failed: Counter[str] = Counter()
     searches: dict[str, space_time.Failure] = {}  # the space-time searches that failed
-    if len(state.specs) >= DENSE * free.sum():
-        state.complete_start = complete_start(engine, world, free, start)
+    searched = 0
+
+    def complete_if(needed: bool) -> None:
+        if needed and state.complete_start is None:
+            state.complete_start = complete_start(engine, world, free, start)
+
+    complete_if(len(state.specs) >= DENSE * free.sum())
     while not start.expired() and not (
         state.best is not None and (state.budget.percent() or 0.0) >= SAFE_START_SHARE
     ):
@@ -212,13 +220,14 @@ def safe_start(engine: Engine, world: Map, free: NDArray[np.bool_], start: Budge
             failed.clear()
             continue
         if flight is None:
+            searched += 1
+            complete_if(searched >= SEARCHES_BEFORE_COMPLETE)
             flight = stepped_aside(engine, uav, free, start, searches)
         if flight is not None and engine.adopt(uav, flight, Phase.SAFE_START):
             failed.clear()
         else:
             failed[uav] += 1
-            if state.complete_start is None:
-                state.complete_start = complete_start(engine, world, free, start)
+            complete_if(True)
         engine.step(uav, Phase.SAFE_START, world)
     state.stopped_by_budget = True
 

@@ -47,7 +47,8 @@ class Metrics(_Out):
     )
     improvement: float | None = Field(
         default=None,
-        description="share of the first safe plan's cost the optimizer took off afterwards",
+        description="share of the first safe plan's cost taken off afterwards (by the "
+        "improvement phase, or by the safe start's plan replacing the complete start's)",
     )
     complete_start: str | None = Field(
         default=None,
