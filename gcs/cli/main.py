@@ -142,6 +142,10 @@ def _plan(args: argparse.Namespace) -> int:
         f"mean deviation {m.mean_deviation:.2f}, {m.nfe} evaluations, {m.seconds:.2f} s"
     )
     print(summary, file=sys.stderr)
+    if m.first_safe_s is not None:
+        print(f"  first safe plan after {m.first_safe_s:.2f} s", file=sys.stderr)
+    if m.complete_start is not None:  # the safe start needed the whole fleet searched at once
+        print(f"  complete start: {m.complete_start}", file=sys.stderr)
     for conflict in result.conflicts:
         print(f"  conflict: {conflict['message']}", file=sys.stderr)
     return 0 if result.feasible else 1

@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import itertools
 from collections import deque
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from gcs.cli.main import main
 from planner.check.safety import check_plan
 from planner.experiments.scenario_generator import random_scenario
 from planner.flows.complete_start import CORNER_REACH, lockstep_flight
@@ -194,3 +196,13 @@ def test_the_complete_starts_flights_are_returned_when_no_budget_is_left_for_mor
     flights = {u.id: _flight(u.trajectory) for u in result.uavs}
     report = check_plan(flights, {u.id: u.radius for u in scenario.uavs}, scenario.blocked(), [])
     assert report.safe and report.min_separation >= np.sqrt(0.5) - 1e-6
+
+
+def test_the_cli_says_when_the_complete_start_gave_the_plan(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "dense.json"
+    path.write_text(random_scenario(0, size=8, uavs=7, objects=0).model_dump_json())
+    assert main(["plan", str(path), "--time-budget", "0", "--iterations", "20"]) == 0
+    said = capsys.readouterr().err
+    assert "first safe plan after" in said and "complete start: safe:" in said
