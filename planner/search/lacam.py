@@ -120,7 +120,7 @@ def search(
     start = np.array([grid.index[s] for s in starts], dtype=np.int32)
     if any(grid.distance[i, start[i]] >= len(grid.cells) for i in range(n)):
         return Result("no solution", [], 0)
-    pibt = _Pibt(grid, n, rng)
+    pibt = _Pibt(grid, rng)
     first = _node(grid, start, None, np.zeros(n))
     stack, seen = [first], {first.config.tobytes()}
     nodes = 1
@@ -159,7 +159,7 @@ def _node(
     active = np.flatnonzero((config != GONE) & (config != grid.goal_array))
     if parent is None:
         distance = grid.distance[np.arange(n), np.maximum(config, 0)]
-        priority = distance / (distance.max() + 1.0) if n else priority
+        priority = distance / (distance.max(initial=0) + 1.0)
     priority = priority.copy()
     priority[active] += 1.0
     order = sorted(active.tolist(), key=lambda i: -priority[i])
@@ -181,11 +181,10 @@ def _grow(grid: _Grid, node: _Node, constraint: _Constraint, rng: np.random.Gene
 class _Pibt:
     """Successor configurations by priority inheritance with backtracking."""
 
-    def __init__(self, grid: _Grid, n: int, rng: np.random.Generator) -> None:
+    def __init__(self, grid: _Grid, rng: np.random.Generator) -> None:
         self.grid, self.rng = grid, rng
-        size = len(grid.cells)
-        self.now = np.full(size, -1, dtype=np.int64).tolist()  # who is in each cell
-        self.next = np.full(size, -1, dtype=np.int64).tolist()  # who goes to each cell
+        self.now = [-1] * len(grid.cells)  # who is in each cell
+        self.next = [-1] * len(grid.cells)  # who goes to each cell
         self.config: list[int] = []
         self.following: list[int] = []
         self.ties: NDArray[np.float64] = np.zeros(0)
