@@ -49,9 +49,11 @@ def test_a_flight_that_once_failed_flies_clean(seed: int) -> None:
 
 @pytest.mark.xfail(
     strict=True,
-    reason="open defect (found 2026-12-05, campaign 3200-3299): an infeasible live replan "
-    "is flown, and the passing order derived from it keeps only what that plan keeps "
-    "(uav2-uav5 reach 2.69 m): uav2 released 4.8 m from uav5, 3.54 m apart by the truth",
+    reason="open defect (found 2026-12-05, campaign 3200-3299): the live replan of an "
+    "object is unsafe by the planner's own check (uav1-uav5 0.198 cells) and is flown; "
+    "the passing order derived from it keeps only what it keeps (uav2-uav5 reach 2.69 m), "
+    "and uav2 came 3.54 m from uav5 by the truth. Ordering those pairs strictly instead "
+    "deadlocks the flight's timing (FlightStuck, a 500): the replan itself must be safe",
 )
 def test_a_live_replan_the_planner_calls_unsafe_does_not_narrow_the_order() -> None:
     report = fly_seed(3294)
