@@ -4,7 +4,9 @@ Every outcome is judged by dense sampling that shares no code with planner.check
 """
 
 import functools
+import json
 import math
+from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
@@ -415,3 +417,22 @@ def test_between_cuts_a_flight_at_any_two_times() -> None:
     whole = flight.between(-1.0, 99.0)
     assert whole is not None
     assert whole.points.tolist() == flight.points.tolist()
+
+
+def test_kept_uavs_that_the_replans_moment_brings_together_are_replanned_too() -> None:
+    """Fuzzed flight 3294's replan, as the service asked it: every rest starts at the
+    replan's moment wherever its UAV is, and two kept UAVs (uav1, uav5) then met 0.198
+    cells apart; the flight's order kept no more than that. One of them is replanned."""
+    data = json.loads((Path(__file__).parent / "data" / "live_replan_3294.json").read_text())
+    scenario = load_scenario(data["scenario"])
+    result = replan_live(
+        scenario,
+        Plan.model_validate(data["plan"]),
+        NewObject(tuple(data["object"]["cell"])),
+        now=data["now"],
+        positions={u: tuple(p) for u, p in data["positions"].items()},
+        progress=data["progress"],
+    )
+    assert result.touched == ["uav4"]
+    assert result.feasible, result.explanation
+    assert set(result.changed) - set(result.touched), "no kept UAV was replanned"
