@@ -23,13 +23,16 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import numpy as np
 import pytest
 
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.flight_plan import UnsafeSpeed, flight_plan
+from gcs.mission.geodesy import GridFrame
 from planner.cases import load_case
 from planner.model.plan import Plan
 from planner.model.scenario import Scenario
+from planner.model.trajectory import Trajectory
 from tests.e2e.flying import online, register, wait_for
 from tests.service_process import ServiceProcess
 from tests.sitl.ardupilot_sitl import Instance, homes_at_starts, instances
@@ -469,3 +472,65 @@ def test_one_arducopter_reached_on_two_ports_is_one_vehicle(tmp_path: Path) -> N
                 print(f"one ArduCopter on two ports: uid {uid}; second registration refused")
         finally:
             service.stop()
+
+
+@pytest.mark.parametrize("name", ["case-6", "gap-swap-6"])
+def test_an_object_reported_mid_flight_is_flown_round_on_real_arducopter(
+    tmp_path: Path, name: str
+) -> None:
+    """At the product's default speed; 3 s into the plan, the operator reports an object
+    a few plan seconds ahead of the UAV with the longest way left. The
+    replan is safe by the planner's check and uploaded; the fleet flies it on real
+    autopilots: separation by the observer, every vehicle down at its goal."""
+    scenario = named(name)
+    with service_flight(tmp_path, scenario) as (client, flight, observer, plan):
+        wait_for(lambda: _plan_clock(client, flight) >= 3.0, 600, "3 s into the plan", every=0.2)
+        cell = _cell_ahead(client, flight, plan, scenario, observer)
+        answer = client.post(f"/flights/{flight}/objects", json={"cell": list(cell)})
+        assert answer.status_code == 200, answer.text
+        replan = answer.json()
+        assert replan["changed"] and replan["feasible"], replan["explanation"]
+        assert all(u["ok"] for u in replan["uploads"]), replan["uploads"]
+        state = final_state(client, flight)
+        events = all_events(client, flight)
+        result = flown(observer, scenario)
+        keep(tmp_path, observer, json.dumps(events), "events.json")
+    assert state["state"] == "landed", (state, [(e["kind"], e["uav_id"]) for e in events][-20:])
+    assert result.separation_m is not None and result.separation_m >= two_r(scenario), (
+        result.describe()
+    )
+    assert all(result.down.values()), result.down
+    far = {u: round(d, 2) for u, d in result.landed_m.items() if d > ARRIVAL_M + LAND_DRIFT_M}
+    assert not far, far
+    print(
+        f"live replan on SITL: object at {cell}, changed {replan['changed']}, "
+        f"{result.describe()}, 2R {two_r(scenario):.2f} m"
+    )
+
+
+def _cell_ahead(
+    client: httpx.Client, flight: str, plan: Plan, scenario: Scenario, observer: Observer
+) -> tuple[int, int]:
+    """A free cell 2 to 12 plan seconds ahead of a UAV (those with the longest way left
+    first), on no start or goal and at least 2 cells from every vehicle now (an object
+    on a vehicle is refused)."""
+    now = _plan_clock(client, flight)
+    taken = {tuple(u.start) for u in scenario.uavs} | {tuple(u.goal) for u in scenario.uavs}
+    taken |= {tuple(c) for c in [*scenario.obstacles, *scenario.object_cells()]}
+    marks = observer.latest()
+    xs, ys = GridFrame.of(scenario).to_cells([m.lat for m in marks], [m.lon for m in marks])
+    for uav in sorted(plan.uavs, key=lambda u: -u.trajectory[-1][0]):
+        flight_path = Trajectory(np.array(uav.trajectory))
+        for ahead in np.arange(2.0, 12.5, 0.5):
+            x, y = flight_path.at([now + ahead])[0]
+            cell = (round(x), round(y)) if np.isfinite(x) else None
+            if cell and cell not in taken and np.hypot(xs - cell[0], ys - cell[1]).min() >= 2:
+                return cell
+    raise AssertionError(f"no free cell ahead of any UAV at plan time {now:.1f} s")
+
+
+def _plan_clock(client: httpx.Client, flight: str) -> float:
+    """Where the fleet is on the plan, in the plan's own seconds (0 before the start)."""
+    live = client.get(f"/flights/{flight}/live-state").json()
+    clocks = [v["progress"]["clock_s"] for v in live["vehicles"] if v.get("progress")]
+    return float(max(clocks, default=0.0) / live["pace_factor"])
