@@ -118,9 +118,10 @@ def replan_live(
     }
     failed = {u: why for u, why in blocked_now.items() if why is not None}
     order = [u for u in touched if u not in failed]
-    changed = _replan_in_turn(order, fleet, where, specs, blocking, scenario, settings, now, failed)
+    replanner = _Replanner(where, specs, blocking, scenario, settings)
+    changed = _replan_in_turn(order, fleet, replanner, now, failed)
     if changed:  # then every rest restarts now (gcs.mission.flight_plan.continued)
-        _resolve_kept(fleet, where, specs, blocking, scenario, settings, changed, failed)
+        _resolve_kept(fleet, replanner, changed, failed)
     conflicts = [_in_plan_time(c, now) for c in fleet_conflicts(fleet, specs, blocking)]
     return LiveReplan(
         now=now,
@@ -135,13 +136,29 @@ def replan_live(
     )
 
 
+@dataclass(frozen=True)
+class _Replanner:
+    """What every UAV's replan is searched in: where each UAV is now, the fleet's specs,
+    what blocks, the scenario and the settings."""
+
+    where: Mapping[str, Array]
+    specs: Mapping[str, UAVSpec]
+    blocking: Blocking
+    scenario: Scenario
+    settings: PlannerSettings
+
+    def replan(
+        self, uav: str, fixed: Mapping[str, Trajectory], rng: np.random.Generator
+    ) -> tuple[Trajectory | None, list[Conflict]]:
+        return replan_one(
+            self.specs[uav], self.where[uav], fixed, self.specs, self.blocking,
+            self.scenario, self.settings, rng,
+        )  # fmt: skip
+
+
 def _resolve_kept(
     fleet: dict[str, Trajectory],
-    where: Mapping[str, Array],
-    specs: Mapping[str, UAVSpec],
-    blocking: Blocking,
-    scenario: Scenario,
-    settings: PlannerSettings,
+    replanner: _Replanner,
     changed: dict[str, Trajectory],
     failed: Mapping[str, str],
 ) -> None:
@@ -151,19 +168,17 @@ def _resolve_kept(
     time may meet (fuzzed flight 3294: uav1 and uav5 0.198 cells apart, and the order
     then kept no more than that). A replan that changes nothing leaves the flight and
     its order as they are. Updates `fleet` and `changed`."""
-    rng = np.random.default_rng(settings.seed + 1)
+    rng = np.random.default_rng(replanner.settings.seed + 1)
     tried: set[str] = set()
     while True:
-        pairs = [c.uavs for c in fleet_conflicts(fleet, specs, blocking) if c.kind == "uav"]
+        conflicts = fleet_conflicts(fleet, replanner.specs, replanner.blocking)
+        pairs = [c.uavs for c in conflicts if c.kind == "uav"]
         kept = [u for pair in pairs for u in reversed(pair) if u not in changed]
         uav = next((u for u in kept if u not in failed and u not in tried), None)
         if uav is None:
             return
         tried.add(uav)
-        fixed = {u: t for u, t in fleet.items() if u != uav}
-        path, _ = replan_one(
-            specs[uav], where[uav], fixed, specs, blocking, scenario, settings, rng
-        )
+        path, _ = replanner.replan(uav, {u: t for u, t in fleet.items() if u != uav}, rng)
         if path is not None:
             fleet[uav] = changed[uav] = path
 
@@ -171,29 +186,23 @@ def _resolve_kept(
 def _replan_in_turn(
     order: list[str],
     fleet: dict[str, Trajectory],
-    where: Mapping[str, Array],
-    specs: Mapping[str, UAVSpec],
-    blocking: Blocking,
-    scenario: Scenario,
-    settings: PlannerSettings,
+    replanner: _Replanner,
     now: float,
     failed: dict[str, str],
 ) -> dict[str, Trajectory]:
     """Prioritized replanning: each UAV in `order` searches against everyone but those
     still to come, whose old paths are about to change. Updates `fleet` and `failed`."""
-    rng = np.random.default_rng(settings.seed)
+    rng = np.random.default_rng(replanner.settings.seed)
     changed = {}
     for k, uav in enumerate(order):
         fixed = {u: t for u, t in fleet.items() if u != uav and u not in order[k + 1 :]}
-        path, found = replan_one(
-            specs[uav], where[uav], fixed, specs, blocking, scenario, settings, rng
-        )
+        path, found = replanner.replan(uav, fixed, rng)
         if path is not None:
             fleet[uav] = changed[uav] = path
         elif found:
             failed[uav] = f"found no safe path ({_in_plan_time(found[0], now).describe()})"
         else:
-            x, y = where[uav]
+            x, y = replanner.where[uav]
             failed[uav] = f"has no way from ({x:.2f}, {y:.2f}) to its goal"
     return changed
 
