@@ -13,11 +13,12 @@ Algorithm 1 with its exploration made constructive (see docs/planner.md):
    (on a long trip, after the UAVs it meets tried hovering out of its way) by a space-time
    A* that may step aside (`planner.search.space_time`). Each success removes every
    conflict of that UAV and creates none, so the loop ends after at most one success per
-   UAV; a UAV that cannot be made safe waits until another one's path changes. The
-   first time one cannot, the whole fleet is also searched at once, beside this loop
-   (the complete start, `planner.flows.complete_start`): its plan is the first safe one,
-   and this loop's, if it gets there within the budget, replaces it when cheaper. What
-   is left is handed to the optimizer (step 2 of the paper's Algorithm 1) while time lasts.
+   UAV; a UAV that cannot be made safe waits until another one's path changes. When
+   this loop struggles (a dense fleet, a fourth space-time search, a UAV it cannot make
+   safe), the whole fleet is also searched at once, beside it (the complete start,
+   `planner.flows.complete_start`): its plan is the first safe one, and this loop's, if
+   it gets there within half the budget, replaces it when cheaper. What is left
+   otherwise is handed to the optimizer (step 2 of the paper's Algorithm 1) while time lasts.
 3. **Improvement (black hole, eq. 8).** Only UAVs whose flight costs noticeably more than
    their lone path (they hover or detour because others are near) are worked on, most
    excess first: first they are re-timed (their hovers recomputed against the others as

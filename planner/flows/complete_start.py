@@ -1,10 +1,11 @@
-"""The complete start: when the safe start leaves conflicts, plan the whole fleet at once.
+"""The complete start: when the safe start struggles, plan the whole fleet at once.
 
 The safe start (`planner.flows.anytime.safe_start`) makes one UAV safe at a time against
 the others held fixed. That is fast and gives short plans, but it is incomplete: in a
 maze, a crowded room or a corridor swap one UAV can be walled in by flights already
-fixed. Then the fleet is searched as a whole (`planner.search.lacam`, complete on the
-4-connected grid) and its steps become flights:
+fixed, and where it is not, a maze's space-time searches can take seconds each. Then
+(`planner.flows.anytime.safe_start` says when) the fleet is searched as a whole
+(`planner.search.lacam`, complete on the 4-connected grid) and its steps become flights:
 
 - every step lasts `step_s` = one cell at the slowest UAV's speed (rounded up to the
   plan's time grid), so no UAV flies faster than its speed and all move in lockstep;

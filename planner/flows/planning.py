@@ -163,7 +163,7 @@ class PlanningState:
     first_safe_s: float | None = None
     first_safe_cost: float | None = None
     converged_runs: int = 0
-    complete_start: str | None = None  # what it did, if the safe start left conflicts
+    complete_start: str | None = None  # what it did, if the safe start called it
     # each UAV's search cost with no other UAV about, per path and map (identities)
     lone_costs: dict[str, tuple[Trajectory, Map, float]] = field(default_factory=dict)
 
