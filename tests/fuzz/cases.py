@@ -56,6 +56,8 @@ class FuzzCase:
         family = FAMILIES[int(rng.integers(len(FAMILIES)))]
         uavs = int(rng.integers(1, max_uavs // 2 + 1)) * 2  # even: gap swaps need pairs
         size = int(rng.integers(8, 12))
+        while family == "gap-swap" and not _gap_swap_fits(size, uavs):
+            size += 1  # only from 10 UAVs (--max-uavs 12): the seeds below draw as before
         faults = {sysid: _faults(rng) for sysid in range(1, uavs + 1) if rng.random() < 0.5}
         late = int(rng.integers(1, uavs + 1)) if rng.random() < 0.2 else None
         actions = tuple(
@@ -118,3 +120,9 @@ def _action(rng: np.random.Generator, uavs: int, size: int) -> Action:
     kind = FLEET_ACTIONS[int(rng.integers(len(FLEET_ACTIONS)))]
     cell = (int(rng.integers(size)), int(rng.integers(size))) if kind == "object" else None
     return Action(at, kind, cell=cell)
+
+
+def _gap_swap_fits(size: int, uavs: int) -> bool:
+    """Whether `gap_swap_scenario` has room for `uavs` on each side of its wall."""
+    wall = size // 2
+    return 2 * uavs <= size * min(wall - 1, size - wall - 2)
