@@ -37,6 +37,7 @@ from gcs.mavlink.parameters import set_in_units
 from gcs.mission.build import takeoff_index
 from gcs.mission.fence import FencePlan
 from gcs.mission.flight_plan import FlightPlan, continued
+from gcs.mission.flight_timing import FlightStuck
 from gcs.mission.motion import Gate
 from planner.model.trajectory import Trajectory
 
@@ -200,31 +201,38 @@ class Fleet:
     # --- live replanning -------------------------------------------------------------------
 
     async def replan(
-        self, missions: dict[str, Mission], changed: dict[str, Trajectory], *, starts_at: float
+        self,
+        missions: dict[str, Mission],
+        changed: dict[str, Trajectory],
+        *,
+        starts_at: float,
+        checked: FlightPlan,
     ) -> dict[str, VehicleOutcome[None]]:
         """Give flying vehicles new missions flying `changed` trajectories (cells, the
         flight's clock) from where each is now (a live replan). Each is uploaded and
         verified; then the fleet follows the rest of the flight: every vehicle from where
         it is, the new passing order among them, and the new missions made current from
-        their take-off item (which an airborne vehicle completes at once)."""
+        their take-off item (which an airborne vehicle completes at once). `checked` is
+        that rest as `continuation` made it before the uploads (its order can be kept)."""
 
         async def upload_one(member: Member) -> None:
             await member.client.upload(missions[member.uav_id])
             self._gate_again(member.uav_id)
 
-        outcomes = await self.crew.each(upload_one, "replan", missions)
-        taken = {uav for uav, outcome in outcomes.items() if outcome.ok}
         crew = self.crew
-        along = {uav: m.along.s for uav, m in crew.members.items()}
-        flight = await asyncio.to_thread(
-            continued,
-            crew.flight,
-            along,
-            {uav: changed[uav] for uav in taken},
-            {uav: missions[uav] for uav in taken},
-            starts_at,
-        )
-        self._follow(flight, taken, starts_at)
+        outcomes = await crew.each(upload_one, "replan", missions)
+        taken = {uav for uav, outcome in outcomes.items() if outcome.ok}
+        along = self.along()  # where each vehicle is now that the uploads are done
+
+        def rest() -> FlightPlan:
+            try:
+                return self.continuation(along, changed, missions, starts_at, taken)
+            except FlightStuck:
+                if taken != set(missions):
+                    raise
+                return checked  # the same missions' order, from a moment earlier
+
+        self._follow(await asyncio.to_thread(rest), taken, starts_at)
 
         async def start_one(member: Member) -> None:
             await member.client.set_current(member.takeoff_seq)
@@ -232,6 +240,31 @@ class Fleet:
 
         started = await crew.each(start_one, "replan", taken)
         return {**outcomes, **{uav: o for uav, o in started.items() if not o.ok}}
+
+    def along(self) -> dict[str, float]:
+        """Where each vehicle is along its path, in metres."""
+        return {uav: m.along.s for uav, m in self.crew.members.items()}
+
+    def continuation(
+        self,
+        along: dict[str, float],
+        changed: dict[str, Trajectory],
+        missions: dict[str, Mission],
+        starts_at: float,
+        taken: set[str] | None = None,
+    ) -> FlightPlan:
+        """The rest of the flight from `along` with the new missions of `taken` (all of
+        `missions` if None), timed: FlightStuck if its passing order cannot be kept."""
+        taken = set(missions) if taken is None else taken
+        flight = continued(
+            self.crew.flight,
+            along,
+            {uav: changed[uav] for uav in taken},
+            {uav: missions[uav] for uav in taken},
+            starts_at,
+        )
+        _ = flight.timed
+        return flight
 
     def _gate_again(self, uav_id: str) -> None:
         """A new mission, or its start made current, gives up a pause (ArduCopter SITL

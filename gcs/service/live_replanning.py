@@ -16,6 +16,7 @@ import numpy as np
 from gcs.fleet.fleet import Fleet, VehicleOutcome
 from gcs.mavlink.mission_item import Mission
 from gcs.mission.build import Finish, build_mission
+from gcs.mission.flight_plan import FlightPlan
 from gcs.mission.geodesy import GridFrame
 from planner.live.replan import LiveReplan, NewObject, replan_live
 from planner.model.plan import Plan, PlannedUAV
@@ -49,31 +50,40 @@ async def replan_flight(
     now = fleet.plan_time()
     positions = _positions(fleet, frame)
     progress = {uav: t for uav, t in fleet.places_on_plan().items() if uav in positions}
-    result = await asyncio.to_thread(
-        replan_live,
-        scenario,
-        plan,
-        new_object,
-        now=now,
-        positions=positions,
-        progress=progress,
-        known_objects=known,
-    )
+    along = fleet.along()
     speeds = {u.id: u.speed for u in scenario.uavs}
-    missions: dict[str, Mission] = {}
-    for uav, trajectory in result.changed.items():
-        missions[uav] = build_mission(
-            trajectory.points,
-            speeds[uav],
-            frame,
-            fleet.autopilot(uav),
-            altitude_m=altitude_m,
-            finish=finish,
-            acceptance_radius_m=turn_radius_m,
-            holds=False,  # the passing order makes it wait where another is in its way
-        )
+    autopilots = {u.id: fleet.autopilot(u.id) for u in scenario.uavs}
+
+    def replanned() -> tuple[LiveReplan, dict[str, Mission], FlightPlan | None]:
+        """The replan, its missions and the rest of the flight with them, in one worker
+        call: a flight whose new passing order cannot be kept (FlightStuck) is found here,
+        before anything is uploaded."""
+        result = replan_live(
+            scenario, plan, new_object, now=now, positions=positions, progress=progress,
+            known_objects=known,
+        )  # fmt: skip
+        missions = {
+            uav: build_mission(
+                trajectory.points,
+                speeds[uav],
+                frame,
+                autopilots[uav],
+                altitude_m=altitude_m,
+                finish=finish,
+                acceptance_radius_m=turn_radius_m,
+                holds=False,  # the passing order makes it wait where another is in its way
+            )
+            for uav, trajectory in result.changed.items()
+        }
+        if not missions:
+            return result, missions, None
+        return result, missions, fleet.continuation(along, result.changed, missions, result.now)
+
+    result, missions, rest = await asyncio.to_thread(replanned)
     uploads = (
-        await fleet.replan(missions, dict(result.changed), starts_at=result.now) if missions else {}
+        await fleet.replan(missions, dict(result.changed), starts_at=result.now, checked=rest)
+        if rest is not None
+        else {}
     )
     return ReplanOutcome(result, missions, uploads, _spliced(plan, result, uploads))
 

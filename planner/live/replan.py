@@ -166,21 +166,27 @@ def _resolve_kept(
     replanned too, one at a time against everyone else, each at most once: the flight
     then restarts every rest now, wherever its UAV is, so two its order held apart in
     time may meet (fuzzed flight 3294: uav1 and uav5 0.198 cells apart, and the order
-    then kept no more than that). A replan that changes nothing leaves the flight and
-    its order as they are. Updates `fleet` and `changed`."""
+    then kept no more than that). Kept only if every pair is then apart; a replan that
+    changes nothing leaves the flight and its order as they are. Updates `fleet` and
+    `changed`."""
     rng = np.random.default_rng(replanner.settings.seed + 1)
     tried: set[str] = set()
+    before, changed_before = dict(fleet), dict(changed)
     while True:
         conflicts = fleet_conflicts(fleet, replanner.specs, replanner.blocking)
         pairs = [c.uavs for c in conflicts if c.kind == "uav"]
         kept = [u for pair in pairs for u in reversed(pair) if u not in changed]
         uav = next((u for u in kept if u not in failed and u not in tried), None)
         if uav is None:
-            return
+            break
         tried.add(uav)
         path, _ = replanner.replan(uav, {u: t for u, t in fleet.items() if u != uav}, rng)
         if path is not None:
             fleet[uav] = changed[uav] = path
+    if pairs:  # not every pair resolved: the kept ones stay as they were
+        fleet.update(before)
+        changed.clear()
+        changed.update(changed_before)
 
 
 def _replan_in_turn(

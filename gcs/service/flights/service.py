@@ -32,6 +32,7 @@ from gcs.mission.build import takeoff_index
 from gcs.mission.fence import FencePlan, fence_of
 from gcs.mission.files import plan_document
 from gcs.mission.flight_plan import FlightPlan, flight_plan
+from gcs.mission.flight_timing import FlightStuck
 from gcs.mission.geographic import load_geographic
 from gcs.service.flights.active import ActiveFlight, VehicleAnswer, event_json
 from gcs.service.flights.book import FlightBook
@@ -374,6 +375,11 @@ class FlightService:
             )  # fmt: skip
         except ValueError as exc:  # the planner's verdict on the object itself
             raise BadObject(str(exc)) from exc
+        except FlightStuck as exc:  # found before any upload: every mission stands
+            raise StateConflict(
+                f"the replan for the object at {tuple(new_object.cell)} was not flown: its "
+                f"passing order cannot be kept ({exc}); every vehicle keeps its mission"
+            ) from exc
         active.objects.append(new_object)
         active.plan = outcome.plan
         result = outcome.result
