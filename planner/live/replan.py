@@ -170,23 +170,22 @@ def _resolve_kept(
     changes nothing leaves the flight and its order as they are. Updates `fleet` and
     `changed`."""
     rng = np.random.default_rng(replanner.settings.seed + 1)
+    trial, extra = dict(fleet), dict[str, Trajectory]()
     tried: set[str] = set()
-    before, changed_before = dict(fleet), dict(changed)
     while True:
-        conflicts = fleet_conflicts(fleet, replanner.specs, replanner.blocking)
+        conflicts = fleet_conflicts(trial, replanner.specs, replanner.blocking)
         pairs = [c.uavs for c in conflicts if c.kind == "uav"]
-        kept = [u for pair in pairs for u in reversed(pair) if u not in changed]
+        kept = [u for pair in pairs for u in reversed(pair) if u not in changed | extra]
         uav = next((u for u in kept if u not in failed and u not in tried), None)
         if uav is None:
             break
         tried.add(uav)
-        path, _ = replanner.replan(uav, {u: t for u, t in fleet.items() if u != uav}, rng)
+        path, _ = replanner.replan(uav, {u: t for u, t in trial.items() if u != uav}, rng)
         if path is not None:
-            fleet[uav] = changed[uav] = path
-    if pairs:  # not every pair resolved: the kept ones stay as they were
-        fleet.update(before)
-        changed.clear()
-        changed.update(changed_before)
+            trial[uav] = extra[uav] = path
+    if not pairs:  # every pair apart: else the kept ones stay as they were
+        fleet.update(extra)
+        changed.update(extra)
 
 
 def _replan_in_turn(
