@@ -474,16 +474,31 @@ def test_one_arducopter_reached_on_two_ports_is_one_vehicle(tmp_path: Path) -> N
             service.stop()
 
 
-@pytest.mark.parametrize("name", ["case-6", "gap-swap-6"])
+REPLAN_REFUSED_AT_10 = (
+    "open (2026-12-05): at 10 m/s on real SITL the gap swap's replan for an object at "
+    "(4, 6) was answered 409: the timing of the rest of the flight with its new missions "
+    "found two vehicles waiting for each other, so nothing was uploaded. Not strict: "
+    "where the object falls depends on when SITL gets there"
+)
+REPLANNED = [
+    pytest.param("case-6", 5.0, id="case-6@5"),
+    pytest.param("gap-swap-6", 5.0, id="gap-swap-6@5"),
+    pytest.param(
+        "gap-swap-6", 10.0, id="gap-swap-6@10", marks=pytest.mark.xfail(reason=REPLAN_REFUSED_AT_10)
+    ),
+]
+
+
+@pytest.mark.parametrize(("name", "speed"), REPLANNED)
 def test_an_object_reported_mid_flight_is_flown_round_on_real_arducopter(
-    tmp_path: Path, name: str
+    tmp_path: Path, name: str, speed: float
 ) -> None:
-    """At the product's default speed; 3 s into the plan, the operator reports an object
-    a few plan seconds ahead of the UAV with the longest way left. The
-    replan is safe by the planner's check and uploaded; the fleet flies it on real
-    autopilots: separation by the observer, every vehicle down at its goal."""
+    """At `speed`; 3 s into the plan, the operator reports an object a few plan seconds
+    ahead of the UAV with the longest way left. The replan is safe by the planner's check
+    and uploaded; the fleet flies it on real autopilots: separation by the observer,
+    every vehicle down at its goal."""
     scenario = named(name)
-    with service_flight(tmp_path, scenario) as (client, flight, observer, plan):
+    with service_flight(tmp_path, scenario, speed) as (client, flight, observer, plan):
         wait_for(lambda: _plan_clock(client, flight) >= 3.0, 600, "3 s into the plan", every=0.2)
         cell = _cell_ahead(client, flight, plan, scenario, observer)
         answer = client.post(f"/flights/{flight}/objects", json={"cell": list(cell)})
@@ -503,7 +518,7 @@ def test_an_object_reported_mid_flight_is_flown_round_on_real_arducopter(
     far = {u: round(d, 2) for u, d in result.landed_m.items() if d > ARRIVAL_M + LAND_DRIFT_M}
     assert not far, far
     print(
-        f"live replan on SITL: object at {cell}, changed {replan['changed']}, "
+        f"live replan on SITL at {speed:g} m/s: object at {cell}, changed {replan['changed']}, "
         f"{result.describe()}, 2R {two_r(scenario):.2f} m"
     )
 
