@@ -46,6 +46,10 @@ RESUME_WITHIN_S = 60.0
 SETTLE_S = 4.0
 """How long every vehicle must have been down, and nothing sent to any, before a flight
 closes: longer than a packet may take on a link that is still up (its timeout)."""
+START_RACE_S = 5.0
+"""After a start is cancelled, how long a vehicle not (yet) seen in AUTO is watched for
+it: the start's AUTO and MISSION_START may be on their way, and a HEARTBEAT saying so
+may be lost."""
 
 
 class OperatorCommands:
@@ -62,6 +66,9 @@ class OperatorCommands:
         self._unfollowed: dict[str, dict[str, str]] = {}
         """Per interrupted flight: the vehicles whose missions are to be paused once
         reachable (nobody keeps their passing order), until the operator commands them."""
+        self._unfollowed_until: dict[str, float] = {}
+        """Per interrupted flight: until when a vehicle not flying its mission is still
+        watched for starting it (a cancelled start's commands on their way)."""
         self._resumers: dict[str, asyncio.Task[None]] = {}
         """Per flight taken over in the air: its resume once every vehicle is heard."""
 
@@ -132,7 +139,7 @@ class OperatorCommands:
             await slot.preempt()
             outcomes = await self._command_links(row, lambda a: a.hold())
             await self.flights.to_interrupted(flight_id, "held by the operator during the start")
-            self.watch_until_down(flight_id)
+            self.pause_unfollowed(flight_id, row.bindings, watch_s=START_RACE_S)
             return _answers(row, outcomes, asked)
 
     async def continue_(self, flight_id: str) -> list[VehicleAnswer]:
@@ -244,7 +251,8 @@ class OperatorCommands:
             await self.flights.to_interrupted(
                 owner.id, f"{uav} commanded to {action} during the start"
             )
-            self.watch_until_down(owner.id)
+            others = {u: vid for u, vid in owner.bindings.items() if vid != vehicle_id}
+            self.pause_unfollowed(owner.id, others, watch_s=START_RACE_S)
         outcome = await _on_link(FlightActions(self.registry.link(vehicle_id)), action, uav)
         if state in (F.ABORTING, F.INTERRUPTED, F.STARTING):
             self.watch_until_down(owner.id)
@@ -265,11 +273,16 @@ class OperatorCommands:
         self._owed[flight_id] = (fallback, set(vehicle_ids))
         self.watch_until_down(flight_id)
 
-    def pause_unfollowed(self, flight_id: str, bindings: Mapping[str, str]) -> None:
+    def pause_unfollowed(
+        self, flight_id: str, bindings: Mapping[str, str], watch_s: float = 0.0
+    ) -> None:
         """Pause the mission of each vehicle (`bindings`: UAV to vehicle id) still flying
         it, as soon as its link is up (the flight was not followed for a while: after a
-        restart, or taken over)."""
+        restart, or taken over; or its start was cancelled, which may have sent some
+        vehicles off on their missions already: fuzzed flight 3519 saw two of them
+        collide). A vehicle not flying its mission is watched for `watch_s` more."""
         self._unfollowed[flight_id] = {vid: uav for uav, vid in bindings.items()}
+        self._unfollowed_until[flight_id] = _now() + watch_s
         self.watch_until_down(flight_id)
 
     def operator_took(self, flight_id: str, vehicle_id: str | None = None) -> None:
@@ -315,6 +328,7 @@ class OperatorCommands:
         self._watchers.pop(flight_id, None)
         self._owed.pop(flight_id, None)
         self._unfollowed.pop(flight_id, None)
+        self._unfollowed_until.pop(flight_id, None)
 
     async def _pay_what_is_owed(self, flight_id: str) -> None:
         """The abort to the vehicles it has not reached yet, now that they can be."""
@@ -333,6 +347,7 @@ class OperatorCommands:
         A pause only (DO_PAUSE_CONTINUE), never a mode change: what the vehicle does
         otherwise (landing, going home, told so before) is left as it is, and an
         operator's command sent meanwhile is not overridden."""
+        watching = _now() < self._unfollowed_until.get(flight_id, 0.0)
         for vehicle_id in sorted(self._unfollowed.get(flight_id, {})):
             waiting = self._unfollowed.get(flight_id, {})  # afresh after each pause:
             if vehicle_id not in waiting:  # the operator's command, or abort, came first
@@ -340,9 +355,11 @@ class OperatorCommands:
             link = self.registry.link_or_none(vehicle_id)
             if link is None:
                 continue  # not back yet
-            uav = waiting.pop(vehicle_id)
-            if link.state.mode != "AUTO" or not link.state.armed:  # both known from HEARTBEAT
+            if link.state.mode != "AUTO" or not link.state.armed:  # both from HEARTBEAT
+                if not watching:
+                    waiting.pop(vehicle_id)
                 continue
+            uav = waiting.pop(vehicle_id)
             try:
                 await FlightActions(link).pause()
                 ok, detail = True, "mission paused: nobody keeps the passing order"
