@@ -61,6 +61,7 @@ class Crew:
     commander: GateCommander
     bus: EventBus = field(default_factory=EventBus)
     held: set[str] = field(default_factory=set)  # by the operator: only the operator moves it
+    replanning: set[str] = field(default_factory=set)  # stopped for their new missions
     failed: dict[str, str] = field(default_factory=dict)  # uav -> why it cannot go on
     withdrawn: dict[str, str] = field(default_factory=dict)  # uav -> "land" / "rtl"
     aborted: str | None = None  # why, once aborted

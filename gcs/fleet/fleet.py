@@ -15,7 +15,7 @@ nothing behind.
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 from gcs.fleet import interventions, launch, resumption
 from gcs.fleet.crew import Crew, Fallback, FleetSettings
@@ -117,6 +117,22 @@ class Fleet:
             for uav, m in self.crew.members.items()
         }
 
+    def stopping_places(self) -> dict[str, tuple[float, float]]:
+        """Where each vehicle under way would come to rest on its path if stopped now
+        (metres, the grid's frame): a vehicle a live replan changes is stopped before
+        its new mission is uploaded (`replan`), so that is where its new path must
+        begin. Begun where the vehicle was, it stopped 1.9 m into its new path, 1.1 m
+        past where the new order had it wait for another (fuzzed flight 3401: 5.82 m)."""
+        crew, rule = self.crew, self.crew.gatekeeper.rule
+        places = {}
+        for uav, m in crew.members.items():
+            if uav in crew.held or m.tracker.landing(m.link.state):
+                continue  # it does not stop for the replan
+            limits = crew.flight.limits[uav]
+            room = rule.needed_m(m.along.speed, m.along.accel, limits) - rule.buffer_m
+            places[uav] = m.along.path.position(m.along.s + room)
+        return places
+
     def plan_time(self) -> float:
         """The plan's clock: seconds since the common start, on the vehicles' own time."""
         return self.crew.clock()
@@ -214,7 +230,19 @@ class Fleet:
         it is, the new passing order among them, and the new missions made current from
         their take-off item (which an airborne vehicle completes at once). `checked` is
         that rest as `continuation` made it before the uploads (its order can be kept)."""
+        self._stop_for_replan(missions)
+        try:
+            return await self._upload_and_follow(missions, changed, starts_at, checked)
+        finally:
+            self.crew.replanning.clear()
 
+    async def _upload_and_follow(
+        self,
+        missions: dict[str, Mission],
+        changed: dict[str, Trajectory],
+        starts_at: float,
+        checked: FlightPlan,
+    ) -> dict[str, VehicleOutcome[None]]:
         async def upload_one(member: Member) -> None:
             await member.client.upload(missions[member.uav_id])
             self._gate_again(member.uav_id)
@@ -266,13 +294,31 @@ class Fleet:
         _ = flight.timed
         return flight
 
+    def _stop_for_replan(self, uav_ids: Iterable[str]) -> None:
+        """The vehicles about to get new missions stop where they are until the order
+        lets them fly them: the new ones begin where each comes to rest
+        (`stopping_places`), and uploads over lossy links take seconds (fuzzed flight
+        3401: 8.5 s, in which one flew 25 m on along its old path, into the way of
+        another). They brake out of AUTO: paused, the new mission and its new current
+        item would each send them on (3401 again: from rest up to 2.2 m/s, 2.9 m past
+        the place the new order had one wait at)."""
+        crew = self.crew
+        for uav in uav_ids:
+            member = crew.members[uav]
+            if uav in crew.held or member.tracker.landing(member.link.state):
+                continue  # the operator's, or ArduCopter will not pause it
+            crew.replanning.add(uav)
+            crew.gatekeeper.stop(uav)
+            crew.commander.brake(uav)
+
     def _gate_again(self, uav_id: str) -> None:
         """A new mission, or its start made current, gives up a pause (ArduCopter SITL
         flew on 13.2 m after MISSION_SET_CURRENT while paused): a vehicle the order stops
-        or slows is brought to its gate again at once (fuzzed flight 3034)."""
+        or slows is brought to its gate again at once (fuzzed flight 3034). One braked
+        out of its mission for the replan (`_stop_for_replan`) is not moved by either."""
         crew, gatekeeper = self.crew, self.crew.gatekeeper
         gate = gatekeeper.gates[uav_id]
-        if uav_id not in crew.held and gate != Gate.GO:
+        if uav_id not in crew.held and uav_id not in crew.replanning and gate != Gate.GO:
             crew.commander.restarted(uav_id, gate, gatekeeper.approach.get(uav_id))
 
     def _follow(self, flight: FlightPlan, changed: set[str], starts_at: float) -> None:
@@ -281,11 +327,13 @@ class Fleet:
         crew.flight = flight
         crew.gatekeeper.replan(flight.order, flight.limits)
         for uav, member in crew.members.items():
+            if uav not in changed:  # the rest of its path
+                member.along.carry_on(flight.paths[uav])
+                continue
             flown_since = CATCH_UP_S * flight.limits[uav].speed_m_s
             member.along.restart(flight.paths[uav], member.link.state, flown_since)
-            if uav in changed:
-                visits = [v.shifted(starts_at) for v in flight.visits(uav)]
-                member.follow_mission(flight.missions[uav], visits)
+            visits = [v.shifted(starts_at) for v in flight.visits(uav)]
+            member.follow_mission(flight.missions[uav], visits)
 
     # --- the end ------------------------------------------------------------------------
 

@@ -10,6 +10,7 @@ mission without us, and a short outage must not end a flight while vehicles are 
 from __future__ import annotations
 
 import asyncio
+import logging
 from dataclasses import dataclass
 
 from gcs.fleet.crew import Crew
@@ -29,6 +30,8 @@ from gcs.fleet.interventions import abort
 from gcs.fleet.member import Member
 from gcs.mission.geodesy import distance_m
 from gcs.mission.motion import Gate
+
+log = logging.getLogger("mvo_gcs.flight")
 
 
 @dataclass(frozen=True)
@@ -144,6 +147,11 @@ class Follower:
                 m.actions.mission_speed_m_s = crew.flight.cruise_at(uav, m.along.s)
         gated = [uav for uav, m in crew.members.items() if self._gated(uav, m)]
         along = {uav: m.along for uav, m in crew.members.items()}
+        for uav in gated:
+            if crew.commander.stop_undone(uav, along[uav].speed):
+                log.warning(
+                    "%s sped up to %.1f m/s while stopped: stopped again", uav, along[uav].speed
+                )
         for change in crew.gatekeeper.decide(along, gated):
             crew.commander.want(change.uav_id, change.gate, change.speed_m_s)
             if change.gate == Gate.GO:
@@ -156,7 +164,8 @@ class Follower:
 
     def _gated(self, uav: str, member: Member) -> bool:
         """Whether the passing order commands this vehicle now: flying its plan, heard,
-        not held by the operator (whose hold nobody else lifts), and not coming down at
+        not held by the operator (whose hold nobody else lifts), not stopped for a new
+        mission (a live replan, until it flies it), and not coming down at
         its goal (ArduCopter will not pause a landing), unless it was stopped short of it
         (it must be let go when its way is clear)."""
         crew = self.crew
@@ -167,7 +176,8 @@ class Follower:
             return False
         stopped = crew.gatekeeper.gates[uav] != Gate.GO
         landing = member.tracker.landing(state) and not stopped
-        return state.link_up and uav not in crew.held and not landing
+        replanning = uav in crew.replanning
+        return state.link_up and uav not in crew.held and not replanning and not landing
 
 
 def default_timeout(crew: Crew) -> float:

@@ -31,6 +31,10 @@ from gcs.mavlink.errors import GcsError
 from gcs.mission.motion import CopterLimits, Gate, StoppingRule
 from gcs.mission.passing_order import PassingOrder
 
+UNDONE_M_S = 1.0
+"""How much faster than its slowest since a stop a stopped vehicle may fly before the
+stop is taken as undone."""
+
 
 @dataclass(frozen=True)
 class GateChange:
@@ -87,6 +91,11 @@ class Gatekeeper:
         """A new order (a live replan); the gates stay as they are until the next look."""
         self.order, self.limits = order, dict(limits)
 
+    def stop(self, uav_id: str) -> None:
+        """`uav_id` stops where it is, whatever the order says, until gated again."""
+        self.gates[uav_id], self.waits_for[uav_id] = Gate.STOP, None
+        self.approach.pop(uav_id, None)
+
     def out_of_the_way(self, uav_id: str) -> None:
         """`uav_id` is down for good: nobody waits for it any more, nor it for anyone."""
         self.gone.add(uav_id)
@@ -113,6 +122,8 @@ class GateCommander:
         self._approach: dict[str, float] = {}  # the speed wanted of an approach
         self._slowed: dict[str, float | None] = {}  # the approach speed last commanded
         self._tasks: dict[str, asyncio.Task[None]] = {}
+        self._slowest: dict[str, float] = {}  # since each vehicle was brought to STOP
+        self._braking: set[str] = set()  # to be stopped out of their missions
 
     def want(self, uav_id: str, gate: Gate, speed_m_s: float | None = None) -> None:
         """Bring the vehicle to `gate` (approaching at `speed_m_s`, a CREEP's)."""
@@ -122,6 +133,15 @@ class GateCommander:
         task = self._tasks.get(uav_id)
         if task is None or task.done():
             self._tasks[uav_id] = asyncio.ensure_future(self._bring(uav_id))
+
+    def brake(self, uav_id: str) -> None:
+        """Stop the vehicle out of its mission (`FlightActions.brake_in_mission`), whatever
+        its gate: its mission is about to change (a live replan), which would give up a
+        pause. Its next change from STOP sends it on in AUTO, at the mission's speed."""
+        self._braking.add(uav_id)
+        self.applied[uav_id] = Gate.GO
+        self._slowed[uav_id] = None
+        self.want(uav_id, Gate.STOP)
 
     def settle(self, uav_id: str, gate: Gate) -> None:
         """The vehicle is at `gate` by other means (the operator held or continued it);
@@ -139,6 +159,25 @@ class GateCommander:
         self.applied[uav_id] = Gate.GO
         self._slowed[uav_id] = math.nan
         self.want(uav_id, gate, speed_m_s)
+
+    def stop_undone(self, uav_id: str, speed_m_s: float) -> bool:
+        """Whether a vehicle brought to STOP sped up again, so that its stop was undone
+        behind our back; if so, it is stopped again. A late copy of a retried
+        MISSION_SET_CURRENT gives up a pause (fuzzed flight 3401: reordered on its link,
+        it sent a vehicle the order held from rest up to 3.7 m/s, 2.24 m from another).
+        A paused mission may still speed up a little while its S-curve runs down; a
+        stop undone speeds up to its mission's speed."""
+        task = self._tasks.get(uav_id)
+        stopped = self.applied[uav_id] == self._wanted[uav_id] == Gate.STOP
+        if not stopped or (task is not None and not task.done()):
+            self._slowest.pop(uav_id, None)
+            return False
+        slowest = self._slowest[uav_id] = min(self._slowest.get(uav_id, speed_m_s), speed_m_s)
+        if speed_m_s <= slowest + UNDONE_M_S:
+            return False
+        del self._slowest[uav_id]
+        self.restarted(uav_id, Gate.STOP, None)
+        return True
 
     def found_stopped(self, uav_id: str) -> None:
         """The vehicle was stopped by others (a flight followed again): at STOP, and its
@@ -173,6 +212,10 @@ class GateCommander:
         than its speed); otherwise the speed first (an approach's, or the mission's again
         after one, even one that ended in a stop), then resume if stopped."""
         actions = self._actions[uav_id]
+        if new == Gate.STOP and uav_id in self._braking:
+            await actions.brake_in_mission()
+            self._braking.discard(uav_id)
+            return
         if new == Gate.STOP:
             await actions.pause_mission()
             return

@@ -89,6 +89,15 @@ class PathProgress:
         if state is not None:
             self.find(state, 0.0, within_m)
 
+    def carry_on(self, path: PlannedPath) -> None:
+        """The rest of the same path (a live replan kept this vehicle's): the vehicle is
+        where it was, counted from where the rest begins. Found on it anew, it could be
+        put on the wrong pass of a path that comes back over itself (fuzzed flight 3499:
+        at 0.7 m of a rest it was 10 m along, and left there while it flew 20 m on)."""
+        s = self.s - (path.skipped_m - self.path.skipped_m)
+        self.restart(path)
+        self.s = min(max(s, 0.0), path.length)
+
     def _project(self, here: np.ndarray, lo: float, hi: float) -> float:
         """The distance along the path of the point nearest `here`, between `lo` and `hi`
         metres along it (the last place if none is)."""

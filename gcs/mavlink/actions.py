@@ -249,6 +249,14 @@ class FlightActions:
             self._braked_in_mission = True
             return f"{braked} (the mission would not pause: {refused.statustext or refused})"
 
+    async def brake_in_mission(self) -> str:
+        """Stop a vehicle out of its mission (ArduCopter BRAKE) until `resume_mission`
+        sends it on in AUTO: a new mission, or a new current item, given to a paused one
+        sends it on at once."""
+        braked = await self._brake()
+        self._braked_in_mission = True
+        return braked
+
     def found_stopped_out_of_mission(self) -> None:
         """The vehicle was stopped out of AUTO by others (a service gone, which held it
         as it stopped): only AUTO again resumes its mission."""

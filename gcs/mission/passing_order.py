@@ -16,6 +16,15 @@ cycle: no one ever waits, directly or through others, for itself. Where the plan
 flies two UAVs within reach of each other at the same time, there is no order to keep:
 that pair's reach is narrowed to what the plan keeps (`reach_m` per pair), and the
 flight says so (`narrowest_margin_m`).
+
+The rest of a flight after a live replan is not one plan's clock: kept vehicles continue
+from wherever the order has them, so two of them, or a kept and a replanned one, may
+seem closer than their two radii at once. There the pair is given an order all the same
+(`order_together`): the one that comes first goes first, and the other waits. Such a
+wait may point backwards in the plan's time, so a cycle is no longer ruled out by
+construction; the flight's timing (`flight_timing`) then proves there is none: a
+simulated flight in which every wait was met is an order of all the events that keeps
+every wait, which a cycle would forbid (FlightStuck otherwise).
 """
 
 from __future__ import annotations
@@ -51,6 +60,9 @@ class PlannedPath:
     ahead_s: float = 0.0
     """How far this clock runs ahead of the plan's: a live replan restarts a kept path
     at the replan's moment (`starting_at`)."""
+    skipped_m: float = 0.0
+    """How far along the UAV's earlier path this one begins: a live replan keeps the rest
+    of a path (`after`)."""
 
     @classmethod
     def of(
@@ -85,6 +97,7 @@ class PlannedPath:
             np.concatenate([[t], self.leave[rest]]),
             self.radius_m,
             self.ahead_s,
+            self.skipped_m + s,
         )
 
     def starting_at(self, t: float) -> PlannedPath:
@@ -114,7 +127,7 @@ class PlannedPath:
         leave[k - 1] += wait
         arrive[k:] += wait
         leave[k:] += wait
-        return PlannedPath(self.uav_id, xy, arrive, leave, self.radius_m, self.ahead_s)
+        return dataclasses.replace(self, xy=xy, arrive=arrive, leave=leave)
 
     def _clock_at(self, s: float) -> tuple[int, float, float]:
         """(the first vertex beyond `s`, `s` kept on the path, when the UAV leaves it)."""
@@ -204,16 +217,19 @@ class PassingOrder:
         paths: Iterable[PlannedPath],
         margin_m: float,
         step_m: float = DEFAULT_STEP_M,
+        order_together: bool = False,
     ) -> PassingOrder:
         """The order of the plan's close encounters, keeping every pair `2R + margin_m`
-        apart where the plan leaves room for it (and what the plan keeps where not)."""
+        apart where the plan leaves room for it (and what the plan keeps where not,
+        unless `order_together`: see above)."""
         sampled = {p.uav_id: (p, p.samples(step_m)) for p in paths}
         waits: dict[str, list[Waits]] = {uav: [] for uav in sampled}
         reach: dict[tuple[str, str], float] = {}
         for a, b in itertools.combinations(sorted(sampled), 2):
             (pa, samples_a), (pb, samples_b) = sampled[a], sampled[b]
             wanted = pa.radius_m + pb.radius_m + margin_m
-            reach[(a, b)], found = _pair_waits(samples_a, samples_b, wanted, step_m)
+            within = pa.radius_m + pb.radius_m if order_together else 0.0
+            reach[(a, b)], found = _pair_waits(samples_a, samples_b, wanted, step_m, within)
             for follower, leader, wait in ((b, a, found[0]), (a, b, found[1])):
                 if wait is not None:
                     waits[follower].append(Waits(leader, *wait))
@@ -244,12 +260,15 @@ Found = tuple[Floats, Floats, Floats] | None
 
 
 def _pair_waits(
-    a: Samples, b: Samples, wanted_m: float, step_m: float
+    a: Samples, b: Samples, wanted_m: float, step_m: float, order_within_m: float
 ) -> tuple[float, tuple[Found, Found]]:
     """The reach kept between two sampled paths, and the waits of b for a and of a for b.
 
     A wait keeps the follower `step_m` short of its sample until the leader is `step_m`
-    beyond its own: positions between samples are then covered too."""
+    beyond its own: positions between samples are then covered too. Where the plan has
+    them within reach at once, and anywhere closer than `order_within_m`, the one that
+    comes there first leads wherever they come within reach (a lead taken in part would
+    have each wait for the other); otherwise the reach is what the plan keeps."""
     s_a, xy_a, in_a, out_a = a
     s_b, xy_b, in_b, out_b = b
     close = cKDTree(xy_a).sparse_distance_matrix(
@@ -260,7 +279,10 @@ def _pair_waits(
     b_first = ~a_first & (out_b[j] <= in_a[i])
     together = ~(a_first | b_first)
     reach = wanted_m
-    if together.any():  # the plan flies them this close at once: keep what it keeps
+    if (d[together] < order_within_m).any():  # one leads in all of the pair's encounter
+        a_first = np.full(len(d), in_a[i[together]].min() <= in_b[j[together]].min())
+        b_first = ~a_first
+    elif together.any():  # the plan flies them this close at once: keep what it keeps
         reach = float(d[together].min()) - step_m
         keep = d < reach + step_m
         i, j, a_first, b_first = i[keep], j[keep], a_first[keep], b_first[keep]

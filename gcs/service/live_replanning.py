@@ -48,7 +48,7 @@ async def replan_flight(
     (flown by the passing order, vehicles are ahead of or behind that clock)."""
     frame = GridFrame.of(scenario)
     now = fleet.plan_time()
-    positions = _positions(fleet, frame)
+    positions = _positions(fleet, frame, scenario.grid.cell_size_m)
     progress = {uav: t for uav, t in fleet.places_on_plan().items() if uav in positions}
     along = fleet.along()
     speeds = {u.id: u.speed for u in scenario.uavs}
@@ -88,12 +88,19 @@ async def replan_flight(
     return ReplanOutcome(result, missions, uploads, _spliced(plan, result, uploads))
 
 
-def _positions(fleet: Fleet, frame: GridFrame) -> dict[str, tuple[float, float]]:
+def _positions(fleet: Fleet, frame: GridFrame, cell_m: float) -> dict[str, tuple[float, float]]:
+    """Where each airborne vehicle starts a new path from (cells): where it comes to
+    rest once stopped for it, if it flies on, else where it is."""
+    stopping = fleet.stopping_places()
     where = {}
     for progress in fleet.progress():
         if progress.lat is not None and progress.lon is not None and not progress.finished:
-            x, y = frame.to_cells(progress.lat, progress.lon)
-            where[progress.uav_id] = (float(x), float(y))
+            if progress.uav_id in stopping:
+                east, north = stopping[progress.uav_id]
+                where[progress.uav_id] = (east / cell_m, north / cell_m)
+            else:
+                x, y = frame.to_cells(progress.lat, progress.lon)
+                where[progress.uav_id] = (float(x), float(y))
     return where
 
 

@@ -95,3 +95,17 @@ def test_after_a_replan_a_vehicle_that_flew_on_from_the_new_paths_start_is_found
     assert progress.s == pytest.approx(5.0, abs=0.1)
     assert progress.update(flying_at(36.0, 0.0, boot_ms=93_200))
     assert progress.s == pytest.approx(6.0, abs=0.1)
+
+
+def test_after_a_replan_a_kept_vehicle_goes_on_from_where_it_was_on_the_rest() -> None:
+    """A kept vehicle's path is the rest of its old one: the vehicle stays where it was,
+    counted from where the rest begins. Found anew on a path that comes back over itself,
+    it was put on the wrong pass and left there while it flew on (fuzzed flight 3499)."""
+    progress = PathProgress(U_TURN, FRAME)
+    progress.find(flying_at(60.0, 19.0), 120.0, 220.0)  # on the way back, 160 m along
+    rest = U_TURN.after(100.0).starting_at(40.0)  # the replan kept it from 100 m on
+    assert rest.skipped_m == pytest.approx(100.0)
+    progress.carry_on(rest)
+    assert progress.s == pytest.approx(60.0, abs=0.1)
+    assert progress.update(flying_at(55.0, 20.0, boot_ms=91_000))  # west, on the way back
+    assert progress.s == pytest.approx(65.0, abs=0.1)

@@ -68,3 +68,70 @@ async def test_the_operators_hold_is_not_undone_by_an_approach_under_way() -> No
     assert link.sent == ["pause"], link.sent
     assert failures == []
     await commander.close()
+
+
+class Recorder:
+    """What a vehicle was sent, in order, each answered at once."""
+
+    def __init__(self) -> None:
+        self.sent: list[str] = []
+
+    async def pause_mission(self) -> str:
+        self.sent.append("pause")
+        return "mission paused"
+
+    async def brake_in_mission(self) -> str:
+        self.sent.append("brake")
+        return "holding in BRAKE"
+
+    async def change_speed(self, speed_m_s: float) -> None:
+        self.sent.append(f"speed {speed_m_s:g}")
+
+    async def resume_mission(self) -> None:
+        self.sent.append("resume")
+
+
+def recorded() -> tuple[GateCommander, Recorder]:
+    link = Recorder()
+    commander = GateCommander(
+        {"uav1": cast(FlightActions, link)},
+        StoppingRule(),
+        cruise=lambda uav: 5.0,
+        on_failure=lambda uav, why: None,
+    )
+    return commander, link
+
+
+async def settled(commander: GateCommander) -> None:
+    for _ in range(10):
+        await asyncio.sleep(0)
+
+
+async def test_a_stop_undone_behind_the_orders_back_is_made_again() -> None:
+    """A late copy of a retried MISSION_SET_CURRENT gives up a pause (fuzzed flight 3401):
+    a stopped vehicle that speeds up is stopped again; one still slowing is left alone."""
+    commander, link = recorded()
+    commander.want("uav1", Gate.STOP)
+    await settled(commander)
+    assert link.sent == ["pause"]
+    for speed in (4.0, 2.0, 0.5, 0.0, 0.6):  # stopping; a paused S-curve may creep on
+        assert not commander.stop_undone("uav1", speed)
+    assert commander.stop_undone("uav1", 1.2)  # faster than its slowest by a metre/second
+    await settled(commander)
+    assert link.sent == ["pause", "pause"]
+    assert commander.applied["uav1"] == Gate.STOP
+    await commander.close()
+
+
+async def test_a_vehicle_braked_for_a_replan_goes_on_in_its_mission() -> None:
+    """Braked out of its mission (its mission changes meanwhile, which a pause would not
+    survive), it goes on with `resume_mission` (AUTO again), not with a speed change."""
+    commander, link = recorded()
+    commander.found_stopped("uav1")
+    commander.brake("uav1")
+    await settled(commander)
+    assert link.sent == ["brake"]
+    commander.want("uav1", Gate.GO)
+    await settled(commander)
+    assert link.sent == ["brake", "resume"]
+    await commander.close()

@@ -135,3 +135,30 @@ def test_whatever_the_delays_someone_can_always_move_and_nobody_comes_closer_tha
             assert gap >= order.reach_m[(a, b)] - order.step_m - 1e-6, (a, b, at)
     else:
         pytest.fail("the adversary ran out of steps")
+
+
+def test_after_a_replan_two_closer_than_their_radii_at_once_are_ordered_all_the_same() -> None:
+    """The rest of a flight after a live replan may have two vehicles closer than their
+    radii at once (fuzzed flight 3499: kept vehicles flew on while the missions went up).
+    A plan's order keeps only what the plan keeps there; the rest's order makes the one
+    that comes first lead, and keeps the whole reach."""
+    paths = _crossing_pair(offset_s=0.5).values()  # both at the crossing within 0.5 s
+    plain = PassingOrder.derive(paths, margin_m=0.5)
+    assert plain.reach_m[("a", "b")] < 6.0
+    ordered = PassingOrder.derive(paths, margin_m=0.5, order_together=True)
+    assert ordered.reach_m[("a", "b")] == pytest.approx(6.5)
+    assert ordered.waits["a"] == []  # a comes first: it leads
+    first = ordered.limit("b", {"a": 0.0, "b": 0.0})
+    assert first.leader == "a"
+    assert first.at_m <= 50.0 - 6.5
+    assert ordered.limit("b", {"a": 50.0 + 6.5 + 0.6}).at_m == np.inf
+
+
+def test_after_a_replan_two_side_by_side_beyond_their_radii_keep_what_the_plan_keeps() -> None:
+    a = PlannedPath("a", np.array([[0.0, 0.0], [100.0, 0.0]]), np.array([0.0, 20.0]),
+                    np.array([0.0, 20.0]), 3.0)  # fmt: skip
+    b = PlannedPath("b", np.array([[0.0, 6.3], [100.0, 6.3]]), np.array([0.0, 20.0]),
+                    np.array([0.0, 20.0]), 3.0)  # fmt: skip
+    order = PassingOrder.derive([a, b], margin_m=0.5, order_together=True)
+    assert order.reach_m[("a", "b")] == pytest.approx(6.3 - order.step_m)
+    assert order.waits == {"a": [], "b": []}  # nobody waits for a whole side-by-side leg
