@@ -86,9 +86,10 @@ def replan_live(
 ) -> LiveReplan:
     """Replan only the UAVs whose remaining flight `new_object` touches (eq. 9, live).
 
-    `positions` (grid coordinates) are where UAVs are at `now`; by default where their
-    trajectory says. Only the replanned UAVs start from them: the others keep their
-    trajectories. `progress` is where each UAV is on its own trajectory (its plan time)
+    `positions` (grid coordinates) are where UAVs start a new path from at `now`; by
+    default where their trajectory says (the ground station gives where a vehicle under
+    way comes to rest once stopped). Only the replanned UAVs start from them: the others
+    keep their trajectories. `progress` is where each UAV is on its own trajectory (its plan time)
     at `now`, by default `now`: a fleet flown by its passing order keeps the plan's order,
     not its clock, so each UAV's remaining flight starts where it is. `known_objects` are
     objects reported before, which every path avoids.
@@ -308,7 +309,7 @@ def _why_not(
     """Why a touched UAV cannot be replanned at all, or None if it can try."""
     inside = np.hypot(*np.maximum(np.abs(position - np.array(cell)) - 0.5, 0.0)) < spec.radius
     if inside and window[0] <= 0 <= window[1]:
-        return f"is inside the object's cell {cell} now"
+        return f"is in the object's cell {cell} now, or cannot stop before it"
     if blocking.obstacles[spec.goal] or blocking.objects[spec.goal]:
         return f"cannot land: its goal {spec.goal} is under an object with no end"
     return None

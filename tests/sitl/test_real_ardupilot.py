@@ -29,6 +29,7 @@ import pytest
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.flight_plan import UnsafeSpeed, flight_plan
 from gcs.mission.geodesy import GridFrame
+from gcs.mission.motion import CopterLimits
 from planner.cases import load_case
 from planner.model.plan import Plan
 from planner.model.scenario import Scenario
@@ -474,18 +475,10 @@ def test_one_arducopter_reached_on_two_ports_is_one_vehicle(tmp_path: Path) -> N
             service.stop()
 
 
-REPLAN_REFUSED_AT_10 = (
-    "open (2026-12-05): at 10 m/s on real SITL the gap swap's replan for an object at "
-    "(4, 6) was answered 409: the timing of the rest of the flight with its new missions "
-    "found two vehicles waiting for each other, so nothing was uploaded. Not strict: "
-    "where the object falls depends on when SITL gets there"
-)
 REPLANNED = [
     pytest.param("case-6", 5.0, id="case-6@5"),
     pytest.param("gap-swap-6", 5.0, id="gap-swap-6@5"),
-    pytest.param(
-        "gap-swap-6", 10.0, id="gap-swap-6@10", marks=pytest.mark.xfail(reason=REPLAN_REFUSED_AT_10)
-    ),
+    pytest.param("gap-swap-6", 10.0, id="gap-swap-6@10"),
 ]
 
 
@@ -500,7 +493,7 @@ def test_an_object_reported_mid_flight_is_flown_round_on_real_arducopter(
     scenario = named(name)
     with service_flight(tmp_path, scenario, speed) as (client, flight, observer, plan):
         wait_for(lambda: _plan_clock(client, flight) >= 3.0, 600, "3 s into the plan", every=0.2)
-        cell = _cell_ahead(client, flight, plan, scenario, observer)
+        cell = _cell_ahead(client, flight, plan, scenario, observer, speed)
         answer = client.post(f"/flights/{flight}/objects", json={"cell": list(cell)})
         assert answer.status_code == 200, answer.text
         replan = answer.json()
@@ -524,14 +517,25 @@ def test_an_object_reported_mid_flight_is_flown_round_on_real_arducopter(
 
 
 def _cell_ahead(
-    client: httpx.Client, flight: str, plan: Plan, scenario: Scenario, observer: Observer
+    client: httpx.Client,
+    flight: str,
+    plan: Plan,
+    scenario: Scenario,
+    observer: Observer,
+    speed: float,
 ) -> tuple[int, int]:
     """A free cell 2 to 12 plan seconds ahead of a UAV (those with the longest way left
-    first), on no start or goal and at least 2 cells from every vehicle now (an object
-    on a vehicle is refused)."""
+    first), on no start or goal, at least 2 cells from every vehicle now, and on no
+    UAV's way before it could stop (an object a vehicle cannot stop before is refused:
+    at 10 m/s that takes 23 m)."""
     now = _plan_clock(client, flight)
     taken = {tuple(u.start) for u in scenario.uavs} | {tuple(u.goal) for u in scenario.uavs}
     taken |= {tuple(c) for c in [*scenario.obstacles, *scenario.object_cells()]}
+    pace = client.get(f"/flights/{flight}/live-state").json()["pace_factor"]
+    stop_s = CopterLimits(speed_m_s=speed).stopping_distance(speed) / speed / pace + 1.0
+    for uav in plan.uavs:  # where each flies until it could have stopped
+        way = Trajectory(np.array(uav.trajectory)).at(np.linspace(now, now + stop_s, 50))
+        taken |= {(round(x), round(y)) for x, y in way if np.isfinite(x)}
     marks = observer.latest()
     xs, ys = GridFrame.of(scenario).to_cells([m.lat for m in marks], [m.lon for m in marks])
     for uav in sorted(plan.uavs, key=lambda u: -u.trajectory[-1][0]):
