@@ -257,7 +257,7 @@ def test_an_object_on_the_uavs_own_cell_is_explained() -> None:
     cell = (round(here[0]), round(here[1]))
     live = replan_live(scenario, result, NewObject(cell), now=1.0, settings=SETTINGS)
     assert uav.id in live.unresolved and not live.feasible
-    assert "inside" in live.explanation and uav.id in live.explanation
+    assert "is in the object's cell" in live.explanation and uav.id in live.explanation
 
 
 def test_a_reported_position_is_where_the_new_path_starts() -> None:
