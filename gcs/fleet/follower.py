@@ -10,7 +10,6 @@ mission without us, and a short outage must not end a flight while vehicles are 
 from __future__ import annotations
 
 import asyncio
-import logging
 from dataclasses import dataclass
 
 from gcs.fleet.crew import Crew
@@ -30,8 +29,6 @@ from gcs.fleet.interventions import abort
 from gcs.fleet.member import Member
 from gcs.mission.geodesy import distance_m
 from gcs.mission.motion import Gate
-
-log = logging.getLogger("mvo_gcs.flight")
 
 
 @dataclass(frozen=True)
@@ -147,11 +144,6 @@ class Follower:
                 m.actions.mission_speed_m_s = crew.flight.cruise_at(uav, m.along.s)
         gated = [uav for uav, m in crew.members.items() if self._gated(uav, m)]
         along = {uav: m.along for uav, m in crew.members.items()}
-        for uav in gated:
-            if crew.commander.stop_undone(uav, along[uav].speed):
-                log.warning(
-                    "%s sped up to %.1f m/s while stopped: stopped again", uav, along[uav].speed
-                )
         for change in crew.gatekeeper.decide(along, gated):
             crew.commander.want(change.uav_id, change.gate, change.speed_m_s)
             if change.gate == Gate.GO:

@@ -31,10 +31,6 @@ from gcs.mavlink.errors import GcsError
 from gcs.mission.motion import CopterLimits, Gate, StoppingRule
 from gcs.mission.passing_order import PassingOrder
 
-UNDONE_M_S = 1.0
-"""How much faster than its slowest since a stop a stopped vehicle may fly before the
-stop is taken as undone."""
-
 
 @dataclass(frozen=True)
 class GateChange:
@@ -122,7 +118,6 @@ class GateCommander:
         self._approach: dict[str, float] = {}  # the speed wanted of an approach
         self._slowed: dict[str, float | None] = {}  # the approach speed last commanded
         self._tasks: dict[str, asyncio.Task[None]] = {}
-        self._slowest: dict[str, float] = {}  # since each vehicle was brought to STOP
         self._braking: set[str] = set()  # to be stopped out of their missions
 
     def want(self, uav_id: str, gate: Gate, speed_m_s: float | None = None) -> None:
@@ -160,24 +155,11 @@ class GateCommander:
         self._slowed[uav_id] = math.nan
         self.want(uav_id, gate, speed_m_s)
 
-    def stop_undone(self, uav_id: str, speed_m_s: float) -> bool:
-        """Whether a vehicle brought to STOP sped up again, so that its stop was undone
-        behind our back; if so, it is stopped again. A late copy of a retried
-        MISSION_SET_CURRENT gives up a pause (fuzzed flight 3401: reordered on its link,
-        it sent a vehicle the order held from rest up to 3.7 m/s, 2.24 m from another).
-        A paused mission may still speed up a little while its S-curve runs down; a
-        stop undone speeds up to its mission's speed."""
-        task = self._tasks.get(uav_id)
-        stopped = self.applied[uav_id] == self._wanted[uav_id] == Gate.STOP
-        if not stopped or (task is not None and not task.done()):
-            self._slowest.pop(uav_id, None)
-            return False
-        slowest = self._slowest[uav_id] = min(self._slowest.get(uav_id, speed_m_s), speed_m_s)
-        if speed_m_s <= slowest + UNDONE_M_S:
-            return False
-        del self._slowest[uav_id]
-        self.restarted(uav_id, Gate.STOP, None)
-        return True
+    def held_out_of_mission(self, uav_id: str) -> None:
+        """The vehicle hovers out of its mission (not started yet): at STOP, and its next
+        change sends it on in AUTO (`FlightActions.found_stopped_out_of_mission`)."""
+        self.applied[uav_id] = self._wanted[uav_id] = Gate.STOP
+        self._slowed[uav_id] = None
 
     def found_stopped(self, uav_id: str) -> None:
         """The vehicle was stopped by others (a flight followed again): at STOP, and its

@@ -62,6 +62,10 @@ FOUND_12 = {
     3401: "vehicles a live replan changed flew on for the 8.5 s of their uploads, then "
     "back to where their new paths began; paused, their new missions sent them on "
     "(0.86 m, also at 3fe2a0e)",
+    3522: "a vehicle the order stopped at its start was sent on with the others and paused "
+    "at once: its mission, speeding up from rest, went on 2.9 m past a limit 0.8 m ahead "
+    "(5.92 m)",
+    3530: "the same at 10 m/s, 6 UAVs (5.94 m)",
 }
 """Flights of up to 12 UAVs (`--max-uavs 12`), beyond the CI batch's 6."""
 

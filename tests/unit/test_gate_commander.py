@@ -107,22 +107,6 @@ async def settled(commander: GateCommander) -> None:
         await asyncio.sleep(0)
 
 
-async def test_a_stop_undone_behind_the_orders_back_is_made_again() -> None:
-    """A late copy of a retried MISSION_SET_CURRENT gives up a pause (fuzzed flight 3401):
-    a stopped vehicle that speeds up is stopped again; one still slowing is left alone."""
-    commander, link = recorded()
-    commander.want("uav1", Gate.STOP)
-    await settled(commander)
-    assert link.sent == ["pause"]
-    for speed in (4.0, 2.0, 0.5, 0.0, 0.6):  # stopping; a paused S-curve may creep on
-        assert not commander.stop_undone("uav1", speed)
-    assert commander.stop_undone("uav1", 1.2)  # faster than its slowest by a metre/second
-    await settled(commander)
-    assert link.sent == ["pause", "pause"]
-    assert commander.applied["uav1"] == Gate.STOP
-    await commander.close()
-
-
 async def test_a_vehicle_braked_for_a_replan_goes_on_in_its_mission() -> None:
     """Braked out of its mission (its mission changes meanwhile, which a pause would not
     survive), it goes on with `resume_mission` (AUTO again), not with a speed change."""
