@@ -74,3 +74,24 @@ FOUND_12 = {
 def test_a_larger_flight_that_once_failed_flies_clean(seed: int) -> None:
     report = fly_seed(seed, max_uavs=12)
     assert not report.violations, f"{FOUND_12[seed]}\n{report.summary()}"
+
+
+OPEN_12 = {
+    3585: "gap swap of 8 UAVs at 10 m/s with an object replan and a pause: 5.24 m",
+    3606: "random scatter of 12 UAVs at 10 m/s, one landed and others continued by the "
+    "operator: 5.47 m",
+    3621: "crossing of 6 UAVs: after an abort (land), uav3 was found in RTL 1 s later",
+    3734: "random scatter of 6 UAVs at 10 m/s, a service restart and a resume: three "
+    "vehicles moved 2 m while the operator held the fleet",
+}
+"""Open defects (campaign 3520-3759 with up to 12 UAVs, 2026-12-05; each also at 6549eea,
+before this session's fixes): not fixed yet."""
+
+
+@pytest.mark.parametrize(
+    "seed",
+    [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=OPEN_12[s])) for s in OPEN_12],
+)
+def test_a_larger_flight_with_an_open_defect(seed: int) -> None:
+    report = fly_seed(seed, max_uavs=12)
+    assert not report.violations, f"{OPEN_12[seed]}\n{report.summary()}"
