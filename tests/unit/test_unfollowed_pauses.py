@@ -29,10 +29,14 @@ class Book:
 
 
 class Registry:
-    """Every vehicle online, armed and flying its mission."""
+    """Every vehicle online and armed, in its mode (flying its mission unless told)."""
+
+    def __init__(self) -> None:
+        self.modes: dict[str, str] = {}
 
     def link_or_none(self, vehicle_id: str) -> Any:
-        return SimpleNamespace(id=vehicle_id, state=SimpleNamespace(mode="AUTO", armed=True))
+        mode = self.modes.get(vehicle_id, "AUTO")
+        return SimpleNamespace(id=vehicle_id, state=SimpleNamespace(mode=mode, armed=True))
 
 
 class Actions:
@@ -97,9 +101,7 @@ async def test_after_a_cancelled_start_a_vehicle_not_yet_in_its_mission_is_watch
     """The start's AUTO may land after the cancel: a vehicle still in GUIDED is looked at
     again until the watch ends, then let go."""
     modes = {"v1": "AUTO", "v2": "GUIDED", "v3": "GUIDED"}
-    ops.registry.link_or_none = lambda vid: SimpleNamespace(  # type: ignore[method-assign]
-        id=vid, state=SimpleNamespace(mode=modes[vid], armed=True)
-    )
+    ops.registry.modes = modes  # type: ignore[attr-defined]
     unfollow(ops, watch_s=5.0)
     await ops._pause_unfollowed("f")
     assert Actions.started == ["v1"]
