@@ -230,44 +230,35 @@ class Fleet:
         it is, the new passing order among them, and the new missions made current from
         their take-off item (which an airborne vehicle completes at once). `checked` is
         that rest as `continuation` made it before the uploads (its order can be kept)."""
-        self._stop_for_replan(missions)
-        try:
-            return await self._upload_and_follow(missions, changed, starts_at, checked)
-        finally:
-            self.crew.replanning.clear()
 
-    async def _upload_and_follow(
-        self,
-        missions: dict[str, Mission],
-        changed: dict[str, Trajectory],
-        starts_at: float,
-        checked: FlightPlan,
-    ) -> dict[str, VehicleOutcome[None]]:
         async def upload_one(member: Member) -> None:
             await member.client.upload(missions[member.uav_id])
             self._gate_again(member.uav_id)
-
-        crew = self.crew
-        outcomes = await crew.each(upload_one, "replan", missions)
-        taken = {uav for uav, outcome in outcomes.items() if outcome.ok}
-        along = self.along()  # where each vehicle is now that the uploads are done
-
-        def rest() -> FlightPlan:
-            try:
-                return self.continuation(along, changed, missions, starts_at, taken)
-            except FlightStuck:
-                if taken != set(missions):
-                    raise
-                return checked  # the same missions' order, from a moment earlier
-
-        self._follow(await asyncio.to_thread(rest), taken, starts_at)
 
         async def start_one(member: Member) -> None:
             await member.client.set_current(member.takeoff_seq)
             self._gate_again(member.uav_id)
 
-        started = await crew.each(start_one, "replan", taken)
-        return {**outcomes, **{uav: o for uav, o in started.items() if not o.ok}}
+        crew = self.crew
+        self._stop_for_replan(missions)
+        try:
+            outcomes = await crew.each(upload_one, "replan", missions)
+            taken = {uav for uav, outcome in outcomes.items() if outcome.ok}
+            along = self.along()  # where each vehicle is now that the uploads are done
+
+            def rest() -> FlightPlan:
+                try:
+                    return self.continuation(along, changed, missions, starts_at, taken)
+                except FlightStuck:
+                    if taken != set(missions):
+                        raise
+                    return checked  # the same missions' order, from a moment earlier
+
+            self._follow(await asyncio.to_thread(rest), taken, starts_at)
+            started = await crew.each(start_one, "replan", taken)
+            return {**outcomes, **{uav: o for uav, o in started.items() if not o.ok}}
+        finally:
+            crew.replanning.clear()
 
     def along(self) -> dict[str, float]:
         """Where each vehicle is along its path, in metres."""
