@@ -80,7 +80,10 @@ OPEN_12 = {
     3585: "gap swap of 8 UAVs at 10 m/s with an object replan and a pause: 5.24 m",
     3606: "random scatter of 12 UAVs at 10 m/s, one landed and others continued by the "
     "operator: 5.47 m",
-    3621: "crossing of 6 UAVs: after an abort (land), uav3 was found in RTL 1 s later",
+    3621: "crossing of 6 UAVs: the operator sent uav3 home during an abort (land), and "
+    "0.26 s later aborted with LAND again; uav3 was in RTL 1 s after (likely a late copy of "
+    "the retried RTL on its reordering link; nothing re-checks a vehicle's mode against "
+    "the operator's last command)",
     3734: "random scatter of 6 UAVs at 10 m/s, a service restart and a resume: three "
     "vehicles moved 2 m while the operator held the fleet",
 }
