@@ -434,7 +434,9 @@ class Flight:
     async def _resume(self) -> bool:
         """The operator's resume of an interrupted flight, once every vehicle is online
         again (or after RESUME_AFTER_S); whether it flies again (a 409 is an answer: a
-        vehicle offline, or its mission replanned live)."""
+        vehicle offline, or its mission replanned live). A resume lets every vehicle go in
+        the passing order, so the operator's holds before it no longer keep one still
+        (fuzzed flight 3734 took a fleet hold sent while interrupted for still in force)."""
 
         async def online() -> bool:
             live = await self.service.client.get(f"/flights/{self.flight_id}/live-state")
@@ -442,6 +444,7 @@ class Flight:
 
         with contextlib.suppress(AssertionError):  # not all online: resumed all the same
             await until(online, RESUME_AFTER_S, "every vehicle online")
+        self._supersede(Action(0.0, "continue"))  # a resume lets every vehicle go
         answer = await self._call("post", f"/flights/{self.flight_id}/resume")
         self.report.notes.append(f"resume: {answer.status_code} {answer.text[:160]}")
         if answer.status_code not in (200, 409):

@@ -66,6 +66,8 @@ FOUND_12 = {
     "at once: its mission, speeding up from rest, went on 2.9 m past a limit 0.8 m ahead "
     "(5.92 m)",
     3530: "the same at 10 m/s, 6 UAVs (5.94 m)",
+    3734: "(the fuzzer's own) a fleet hold sent while the flight was interrupted was taken "
+    "as still in force after the operator's resume, which lets every vehicle go",
 }
 """Flights of up to 12 UAVs (`--max-uavs 12`), beyond the CI batch's 6."""
 
@@ -84,8 +86,6 @@ OPEN_12 = {
     "0.26 s later aborted with LAND again; uav3 was in RTL 1 s after (likely a late copy of "
     "the retried RTL on its reordering link; nothing re-checks a vehicle's mode against "
     "the operator's last command)",
-    3734: "random scatter of 6 UAVs at 10 m/s, a service restart and a resume: three "
-    "vehicles moved 2 m while the operator held the fleet",
 }
 """Open defects (campaign 3520-3759 with up to 12 UAVs, 2026-12-05; each also at 6549eea,
 before this session's fixes): not fixed yet."""
