@@ -126,8 +126,8 @@ class Fleet:
         crew, rule = self.crew, self.crew.gatekeeper.rule
         places = {}
         for uav, m in crew.members.items():
-            if uav in crew.held or m.tracker.landing(m.link.state):
-                continue  # it does not stop for the replan
+            if not self._stops_for_replan(uav):
+                continue
             limits = crew.flight.limits[uav]
             room = rule.needed_m(m.along.speed, m.along.accel, limits) - rule.buffer_m
             places[uav] = m.along.path.position(m.along.s + room)
@@ -294,13 +294,15 @@ class Fleet:
         item would each send them on (3401 again: from rest up to 2.2 m/s, 2.9 m past
         the place the new order had one wait at)."""
         crew = self.crew
-        for uav in uav_ids:
-            member = crew.members[uav]
-            if uav in crew.held or member.tracker.landing(member.link.state):
-                continue  # the operator's, or ArduCopter will not pause it
+        for uav in filter(self._stops_for_replan, uav_ids):
             crew.replanning.add(uav)
             crew.gatekeeper.stop(uav)
             crew.commander.brake(uav)
+
+    def _stops_for_replan(self, uav_id: str) -> bool:
+        """Not one the operator holds, nor one coming down (ArduCopter will not stop it)."""
+        member = self.crew.members[uav_id]
+        return uav_id not in self.crew.held and not member.tracker.landing(member.link.state)
 
     def _gate_again(self, uav_id: str) -> None:
         """A new mission, or its start made current, gives up a pause (ArduCopter SITL

@@ -158,6 +158,7 @@ class GateCommander:
     def held_out_of_mission(self, uav_id: str) -> None:
         """The vehicle hovers out of its mission (not started yet): at STOP, and its next
         change sends it on in AUTO (`FlightActions.found_stopped_out_of_mission`)."""
+        self._actions[uav_id].found_stopped_out_of_mission()
         self.applied[uav_id] = self._wanted[uav_id] = Gate.STOP
         self._slowed[uav_id] = None
 

@@ -258,7 +258,6 @@ def held_at_start(crew: Crew) -> set[str]:
     along = {uav: m.along for uav, m in crew.members.items()}
     changes = crew.gatekeeper.decide(along, list(crew.members))
     for change in changes:
-        crew.members[change.uav_id].actions.found_stopped_out_of_mission()
         crew.commander.held_out_of_mission(change.uav_id)
         waits = change.waits_for or ""
         crew.bus.publish(Waiting(change.uav_id, waits, change.gate.value, change.gap_m))
