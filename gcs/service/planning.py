@@ -138,8 +138,9 @@ class PlanningService:
         except StateConflict:
             return  # a late report (progress after the end) changes nothing
         for queue in self._watchers.get(job_id, ()):
-            if not queue.full():
-                queue.put_nowait(job)
+            if queue.full():  # a slow watcher misses old progress, never the latest state
+                queue.get_nowait()
+            queue.put_nowait(job)
 
     async def shutdown(self) -> None:
         self._stopping = True

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from gcs.service.metrics import ServiceMetrics
+from gcs.service.planning import PlanningService
 from gcs.service.states import (
     FLIGHT_TRANSITIONS,
     JOB_TRANSITIONS,
@@ -21,7 +23,13 @@ from gcs.service.states import (
     JobState,
     StateConflict,
 )
-from gcs.service.storage import Database, FlightRepository, JobRepository
+from gcs.service.storage import (
+    Database,
+    FlightRepository,
+    JobRepository,
+    PlanRepository,
+    ScenarioRepository,
+)
 from gcs.service.storage.tables import FlightRow, JobRow, PlanRow, ScenarioRow
 
 F = FlightState
@@ -135,3 +143,20 @@ def _reachable(state: FlightState) -> set[FlightState]:
                 seen.add(nxt)
                 todo.append(nxt)
     return seen
+
+
+async def test_a_slow_watcher_of_a_job_misses_old_progress_never_its_end(db: Database) -> None:
+    """A job's live socket reads its queue slower than progress comes: the queue keeps
+    the latest states, so the end is never dropped (a full queue dropped it, and the
+    socket closed without saying how the job ended)."""
+    jobs = JobRepository(db)
+    planning = PlanningService(ScenarioRepository(db), PlanRepository(db), jobs, ServiceMetrics())
+    scenario_id = (await ScenarioRepository(db).add(ScenarioRow(name="s", body={}))).id
+    job = await jobs.add(JobRow(scenario_id=scenario_id, settings={}))
+    queue = planning.watch(job.id)
+    for percent in range(1, 151):
+        await planning._set(job.id, JobState.RUNNING, percent=percent)
+    await planning._set(job.id, JobState.CANCELLED)
+    seen = [queue.get_nowait() for _ in range(queue.qsize())]
+    assert seen[-1].state == JobState.CANCELLED
+    assert [j.percent for j in seen[:2]] == [52, 53]  # the oldest went

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import contextlib
 from typing import Any
 
 from fastapi import APIRouter, Query, WebSocket, status
@@ -225,12 +224,14 @@ async def _follow(websocket: WebSocket, job: JobRow, queue: asyncio.Queue[JobRow
     jobs = get_services(websocket).jobs
     await _send_job(websocket, job)
     while not JobState(job.state).is_final:
-        with contextlib.suppress(TimeoutError):
+        try:
             async with asyncio.timeout(1.0):
                 job = await queue.get()
-            await _send_job(websocket, job)
-            continue
-        job = await jobs.get(job.id)  # a quiet second: read it back anyway
+        except TimeoutError:  # a quiet second: read it back, and send it if it has ended
+            job = await jobs.get(job.id)
+            if not JobState(job.state).is_final:
+                continue
+        await _send_job(websocket, job)
     await websocket.close()
 
 
