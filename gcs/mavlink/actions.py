@@ -23,12 +23,14 @@ from gcs.mavlink.errors import (
     CommandFailedError,
     CommandTemporarilyRejectedError,
     FlightError,
+    GcsError,
     WaitTimeoutError,
 )
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.mission_protocol import MissionClient
-from gcs.mavlink.modes import custom_mode, px4_main_sub
+from gcs.mavlink.mode_history import LATE_COPY_S
+from gcs.mavlink.modes import custom_mode, mode_name, px4_main_sub
 
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 DEFINITIVE_HINTS = ("not armable", "safety switch")
@@ -97,6 +99,36 @@ class FlightActions:
         return await send_command(self.link, command, *params, policy=policy or self.commands)
 
     async def set_mode(self, name: str, policy: CommandPolicy | None = None) -> None:
+        """Switch the vehicle to mode `name`; for a moment after, a late copy of a switch
+        asked for just before this one is undone (`gcs.mavlink.mode_history`)."""
+        history = self.link.modes
+        ask = history.begin()
+        try:
+            await self._switch(name, policy)
+        finally:
+            ended = asyncio.get_running_loop().time()
+            earlier = history.end(name, ended)
+        if earlier:
+            self.link.spawn(self._outlast_late_copies(name, earlier, ask, ended + LATE_COPY_S))
+
+    async def _outlast_late_copies(
+        self, name: str, earlier: frozenset[str], ask: int, until: float
+    ) -> None:
+        """Switch to `name` again whenever a HEARTBEAT shows one of the `earlier` modes,
+        until `until` or a later switch; AUTO again forgets the speed asked for, so that
+        goes again too."""
+        history, loop = self.link.modes, asyncio.get_running_loop()
+        with self.link.subscribe(["HEARTBEAT"]) as sub, contextlib.suppress(GcsError):
+            while history.is_latest(ask) and (left := until - loop.time()) > 0:
+                heartbeat = await sub.get(left)
+                if mode_name(int(self.link.autopilot), heartbeat.custom_mode) not in earlier:
+                    continue
+                if history.is_latest(ask):
+                    await self._switch(name, URGENT)
+                    if name == "AUTO" and history.speed_m_s is not None:
+                        await self.change_speed(history.speed_m_s)
+
+    async def _switch(self, name: str, policy: CommandPolicy | None) -> None:
         autopilot = self.link.autopilot
         if autopilot == Autopilot.PX4:
             main, sub = px4_main_sub(name)
@@ -225,6 +257,7 @@ class FlightActions:
 
     async def change_speed(self, speed_m_s: float) -> None:
         """The ground speed of the mission from here on (DO_CHANGE_SPEED, as a command)."""
+        self.link.modes.speed_m_s = speed_m_s
         await self.command(mavlink2.MAV_CMD_DO_CHANGE_SPEED, 1, speed_m_s, -1, policy=URGENT)
 
     async def proceed(self) -> None:

@@ -21,6 +21,7 @@ from gcs.mavlink.connection import GCS_COMPID, GCS_SYSID, MavConnection, Message
 from gcs.mavlink.errors import LinkLostError, VehicleRebootedError
 from gcs.mavlink.identity import VehicleIdentity
 from gcs.mavlink.mission_item import Autopilot
+from gcs.mavlink.mode_history import ModeHistory
 from gcs.mavlink.subscription import Predicate, Subscription
 from gcs.mavlink.vehicle_state import MAV_STATE_BOOT, VehicleState
 
@@ -90,6 +91,7 @@ class VehicleLink:
         self.last_sent: float | None = None  # loop time we last sent the vehicle anything
         self.identity: VehicleIdentity | None = None  # what it reported (gcs.mavlink.identity)
         self._command_turns: dict[int, asyncio.Lock] = {}
+        self.modes = ModeHistory()  # what it was asked for lately, by every command sender
         self._received(heartbeat)
         connection.attach(self.sysid, self._received)
         self.spawn(self._watchdog())

@@ -24,6 +24,7 @@ from gcs.mavlink.errors import CommandFailedError, CommandTimeoutError, VehicleR
 from gcs.mavlink.link import LinkEvent, LinkSettings, VehicleLink
 from gcs.mavlink.mission_item import Autopilot, Command, Frame, Mission, MissionItem
 from gcs.mavlink.mission_protocol import MissionClient, TransferPolicy
+from gcs.mavlink.mode_history import LATE_COPY_S
 from gcs.mavlink.telemetry import TelemetryStreams
 from gcs.mavlink.transport import MemoryTransport
 
@@ -165,6 +166,88 @@ async def test_a_late_answer_to_a_resent_command_does_not_end_the_next_of_its_nu
         assert (LAND, 1) in autopilot.answered  # the LAND was answered, not taken as done
         lands = [m.confirmation for m in peer.sent("COMMAND_LONG") if m.param2 == LAND]
         assert lands == [0, 1]
+    finally:
+        await link.close()
+
+
+class ModeSwitches:
+    """ArduCopter's mode switches, accepted at once; its mode goes out in a HEARTBEAT when
+    the test says so (a late copy of an earlier switch is the test setting `mode`)."""
+
+    def __init__(self) -> None:
+        self.peer: Peer | None = None
+        self.mode = 0
+        self.speeds: list[float] = []
+
+    def __call__(self, msg: Any) -> list[Any]:
+        assert self.peer is not None
+        if msg.get_type() != "COMMAND_LONG":
+            return []
+        if msg.command == mavlink2.MAV_CMD_DO_SET_MODE:
+            self.mode = int(msg.param2)
+        elif msg.command == mavlink2.MAV_CMD_DO_CHANGE_SPEED:
+            self.speeds.append(msg.param2)
+        return [self.peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED)]
+
+    def heartbeat(self) -> None:
+        assert self.peer is not None
+        self.peer.send(
+            self.peer.codec.heartbeat_encode(
+                mavlink2.MAV_TYPE_QUADROTOR, mavlink2.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink2.MAV_MODE_FLAG_SAFETY_ARMED,
+                self.mode, mavlink2.MAV_STATE_ACTIVE,
+            )
+        )  # fmt: skip
+
+
+BRAKE, AUTO = 17, 3
+
+
+@pytest.mark.virtual_clock
+@pytest.mark.parametrize(
+    ("seen", "after_s", "undone"),
+    [(RTL, 0.3, True), (RTL, LATE_COPY_S + 0.1, False), (BRAKE, 0.3, False)],
+    ids=["late-copy", "long-after", "never-asked"],
+)
+async def test_a_late_copy_of_an_earlier_mode_switch_is_switched_back(
+    seen: int, after_s: float, undone: bool
+) -> None:
+    """RTL, then LAND; a HEARTBEAT then shows RTL again: a re-sent RTL held up on the way
+    arrived after the LAND (fuzzed flight 3621). The LAND is made again. Much later, or
+    a mode not asked for (the autopilot's own, a failsafe's), is left as it is."""
+    autopilot = ModeSwitches()
+    link, peer = await linked(autopilot)
+    autopilot.peer = peer
+    actions = FlightActions(link)
+    try:
+        await actions.return_to_launch()
+        await actions.land()
+        await asyncio.sleep(after_s)
+        autopilot.mode = seen
+        autopilot.heartbeat()
+        await asyncio.sleep(0.5)
+        assert autopilot.mode == (LAND if undone else seen)
+        switches = [m.param2 for m in peer.sent("COMMAND_LONG") if m.param2 in (RTL, LAND)]
+        assert switches == [RTL, LAND] + [LAND] * undone
+    finally:
+        await link.close()
+
+
+@pytest.mark.virtual_clock
+async def test_auto_made_again_after_a_late_brake_gets_its_speed_again() -> None:
+    """The order's brake, then its go (AUTO at 3 m/s); a late copy of the brake is undone
+    with AUTO and, since ArduCopter forgets a speed on entering AUTO, the speed again."""
+    autopilot = ModeSwitches()
+    link, peer = await linked(autopilot)
+    autopilot.peer = peer
+    actions = FlightActions(link)
+    try:
+        await actions.brake_in_mission()
+        await actions.approach(3.0)
+        autopilot.mode = BRAKE
+        autopilot.heartbeat()
+        await asyncio.sleep(0.5)
+        assert (autopilot.mode, autopilot.speeds) == (AUTO, [3.0, 3.0])
     finally:
         await link.close()
 
