@@ -256,7 +256,7 @@ def held_at_start(crew: Crew) -> set[str]:
     went on for metres (fuzzed flights 3522 and 3530: 2.9 m past a limit 0.8 m ahead,
     5.92 m from the vehicle it waited for)."""
     along = {uav: m.along for uav, m in crew.members.items()}
-    changes = crew.gatekeeper.decide(along, list(crew.members))
+    changes = crew.gatekeeper.decide(along, list(crew.members), starting=True)
     for change in changes:
         crew.commander.held_out_of_mission(change.uav_id)
         waits = change.waits_for or ""

@@ -199,8 +199,9 @@ def fly(
                 continue
             at, _ = limits_now[uav]
             gap, waited = at - vehicle.s, uav in waited_on
+            accel = vehicle.limits.accel_m_s2 if t == 0.0 else vehicle.a  # as `launch` starts
             gate = rule.decide(
-                vehicle.gate, gap, vehicle.v, vehicle.a, vehicle.limits, waited,
+                vehicle.gate, gap, vehicle.v, accel, vehicle.limits, waited,
                 vehicle.approach_m_s or None,
             )  # fmt: skip
             if gate == Gate.CREEP and vehicle.gate != Gate.CREEP:

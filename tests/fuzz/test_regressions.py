@@ -66,6 +66,13 @@ FOUND_12 = {
     "at once: its mission, speeding up from rest, went on 2.9 m past a limit 0.8 m ahead "
     "(5.92 m)",
     3530: "the same at 10 m/s, 6 UAVs (5.94 m)",
+    3585: "gap swap of 8 UAVs at 10 m/s: a vehicle whose limit was 1.5 m ahead at the "
+    "start was let go (judged at rest) and paused at once; speeding up from its hover it "
+    "went on 5.6 m (5.24 m)",
+    3606: "random scatter of 12 UAVs at 10 m/s: the same at the start (5.47 m)",
+    3621: "crossing of 6 UAVs: the operator sent uav3 home during an abort (land) and "
+    "aborted with LAND again; a re-sent RTL held up on uav3's reordering link arrived "
+    "after the LAND, and uav3 flew home",
     3734: "(the fuzzer's own) a fleet hold sent while the flight was interrupted was taken "
     "as still in force after the operator's resume, which lets every vehicle go",
 }
@@ -76,25 +83,3 @@ FOUND_12 = {
 def test_a_larger_flight_that_once_failed_flies_clean(seed: int) -> None:
     report = fly_seed(seed, max_uavs=12)
     assert not report.violations, f"{FOUND_12[seed]}\n{report.summary()}"
-
-
-OPEN_12 = {
-    3585: "gap swap of 8 UAVs at 10 m/s with an object replan and a pause: 5.24 m",
-    3606: "random scatter of 12 UAVs at 10 m/s, one landed and others continued by the "
-    "operator: 5.47 m",
-    3621: "crossing of 6 UAVs: the operator sent uav3 home during an abort (land), and "
-    "0.26 s later aborted with LAND again; uav3 was in RTL 1 s after (likely a late copy of "
-    "the retried RTL on its reordering link; nothing re-checks a vehicle's mode against "
-    "the operator's last command)",
-}
-"""Open defects (campaign 3520-3759 with up to 12 UAVs, 2026-12-05; each also at 6549eea,
-before this session's fixes): not fixed yet."""
-
-
-@pytest.mark.parametrize(
-    "seed",
-    [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=OPEN_12[s])) for s in OPEN_12],
-)
-def test_a_larger_flight_with_an_open_defect(seed: int) -> None:
-    report = fly_seed(seed, max_uavs=12)
-    assert not report.violations, f"{OPEN_12[seed]}\n{report.summary()}"
