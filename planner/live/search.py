@@ -136,8 +136,10 @@ def _entry_cell(
     cells = cells[np.all((cells >= 0) & (cells < distance.shape), axis=1)]
     cells = cells[~blocked[cells[:, 0], cells[:, 1]]]
     total = np.hypot(*(cells - position).T) + distance[cells[:, 0], cells[:, 1]]
-    if not np.isfinite(total).any():
+    leads_there = np.isfinite(total)  # a straight way into a pocket cut off is no way
+    if not leads_there.any():
         return None
+    cells, total = cells[leads_there], total[leads_there]
     grazes = [
         bool(cell_conflicts("", Trajectory(np.array([[0, *position], [1, *c]])), radius, blocked))
         for c in cells

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike
 from planner.cases import load_case
 from planner.experiments.scenario_generator import crossing_scenario
 from planner.live.replan import LiveReplan, NewObject, replan_live
+from planner.live.search import _entry_cell
 from planner.model.plan import Plan
 from planner.model.scenario import Scenario, load_scenario
 from planner.model.trajectory import Trajectory
@@ -436,3 +437,15 @@ def test_kept_uavs_that_the_replans_moment_brings_together_are_replanned_too() -
     assert result.touched == ["uav4"]
     assert result.feasible, result.explanation
     assert set(result.changed) - set(result.touched), "no kept UAV was replanned"
+
+
+def test_a_replanned_path_starts_from_a_cell_that_leads_to_the_goal() -> None:
+    """Of the cells round a UAV, the ones it reaches without grazing a blocked cell are
+    preferred, but never one cut off from the goal: the only way on here grazes the
+    wall (fuzzed flight 3034, a 500 on an object report: "a finite distance always has
+    a downhill neighbour" from a start cut off by the objects)."""
+    blocked = np.zeros((5, 5), dtype=bool)
+    blocked[2, 3] = True
+    distance = np.full((5, 5), np.inf)
+    distance[3, 3] = 1.0  # only (3, 3) leads on; the way there grazes (2, 3)
+    assert _entry_cell(np.array([2.0, 2.0]), 0.3, distance, blocked) == (3, 3)
