@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs.mavlink.commands import CommandAck, CommandPolicy, send_command
+from gcs.mavlink.commands import URGENT, CommandAck, CommandPolicy, send_command
 from gcs.mavlink.errors import (
     CommandDeniedError,
     CommandError,
@@ -34,10 +34,6 @@ from gcs.mavlink.modes import custom_mode, mode_name, px4_main_sub
 
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 DEFINITIVE_HINTS = ("not armable", "safety switch")
-URGENT = CommandPolicy(timeout_s=0.2, retries=15)
-"""The operator's and the passing order's commands in flight (pause, brake, continue,
-land, return home, speed): sent again soon when no answer comes, for a lost packet must
-not cost a vehicle metres at speed nor the operator a second; each is harmless twice."""
 LIFTING_MM = 300  # above home: a take-off under way
 LIFT_OFF_SEEN_S = 3.0  # how long a re-sent take-off's refusal waits to see the climb
 """Arming refusals that waiting does not cure (the mode, a switch only a person can press)."""
@@ -309,10 +305,10 @@ class FlightActions:
         ArduCopter's paused S-curve keeps the speed it was paused at, and a resume runs
         it up again whatever DO_CHANGE_SPEED asked for (SITL, paused at 5 m/s, resumed at
         1 m/s: 4.9 m/s 2 s later, 13.1 m in 6 s). Its current item flown afresh from rest
-        (MISSION_SET_CURRENT), then slowed, keeps to the speed (SITL: 0.3 / 1.0 / 0.8 /
-        0.9 m/s 1, 2, 4, 6 s later, 4.2 m in 6 s; bench/results/approach_vs_sitl.md).
-        The resume after it changes nothing then, and sends the vehicle on should the
-        MISSION_SET_CURRENT have been lost. One braked out of its mission goes back to
+        (DO_SET_MISSION_CURRENT, acknowledged), then slowed, keeps to the speed (SITL:
+        0.3 / 1.0 / 0.8 / 0.9 m/s 1, 2, 4, 6 s later, 4.2 m in 6 s;
+        bench/results/approach_vs_sitl.md). The resume after it changes nothing then.
+        One braked out of its mission goes back to
         AUTO, which flies its item afresh, and only then gets the speed (AUTO again would
         give it its mission's). PX4 resumes at the speed asked for."""
         if self._braked_in_mission:

@@ -1,16 +1,18 @@
 """The MAVLink mission protocol, client side: upload, download, clear, set current.
 
-Retries follow the spec and QGroundControl (settable, failure mode 1): MISSION_COUNT
-is re-sent after `step_timeout_s`, at most `retries` times; the openings that change
-nothing when repeated (MISSION_REQUEST_LIST, MISSION_CLEAR_ALL, MISSION_SET_CURRENT)
-are re-sent every `item_timeout_s` within the same overall bound. While items flow the
-exchange is nudged every `item_timeout_s` (upload: the last item again, which also
-recovers a lost final ACK; download: the request again) and fails only when no new
-item has moved for `step_timeout_s * (retries + 1)`, so a noisy link is slow but not
-fatal. An upload that timed out or was refused for a passing reason (ERROR,
-CANCELLED) is started again from MISSION_COUNT, `whole_transfer_attempts` in all, while
-the vehicle is still heard. Every wait is bounded; a definitive refusal is never
-retried; a link loss or reboot ends the exchange at once with its own error.
+Set current is the acknowledged DO_SET_MISSION_CURRENT command where the autopilot has
+it (`set_current`). Retries follow the spec and QGroundControl (settable, failure mode
+1): MISSION_COUNT is re-sent after `step_timeout_s`, at most `retries` times; the
+openings that change nothing when repeated (MISSION_REQUEST_LIST, MISSION_CLEAR_ALL, and
+MISSION_SET_CURRENT where the command is missing) are re-sent every `item_timeout_s`
+within the same overall bound. While items flow the exchange is nudged every
+`item_timeout_s` (upload: the last item again, which also recovers a lost final ACK;
+download: the request again) and fails only when no new item has moved for
+`step_timeout_s * (retries + 1)`, so a noisy link is slow but not fatal. An upload that
+timed out or was refused for a passing reason (ERROR, CANCELLED) is started again from
+MISSION_COUNT, `whole_transfer_attempts` in all, while the vehicle is still heard. Every
+wait is bounded; a definitive refusal is never retried; a link loss or reboot ends the
+exchange at once with its own error.
 """
 
 from __future__ import annotations
@@ -23,7 +25,9 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink import ardupilot
+from gcs.mavlink.commands import URGENT, send_command
 from gcs.mavlink.errors import (
+    CommandUnsupportedError,
     MissionMismatchError,
     MissionRejectedError,
     MissionResult,
@@ -348,10 +352,24 @@ class MissionClient:
             raise mission_error(link.sysid, ack.type, "clear")
 
     async def set_current(self, seq: int) -> None:
-        """Make `seq` the item the vehicle flies next; confirmed by MISSION_CURRENT."""
+        """Make `seq` the item the vehicle flies next (ArduCopter flies it afresh from where
+        it is, even if it is the current one): DO_SET_MISSION_CURRENT, acknowledged.
+
+        The MISSION_SET_CURRENT message has no answer of its own: the MISSION_CURRENT taken
+        for one is streamed anyway, so when the vehicle already flew `seq` a lost message
+        looked done (fuzzed flight 3569: an approach's item was not flown afresh, its
+        resume ran the paused S-curve back up to 5.5 m/s, and the next pause stopped it
+        0.5 m from another vehicle). An autopilot without the command gets the message."""
         link = self.link
-        msg = link.codec.mission_set_current_encode(link.sysid, link.compid, seq)
         async with self._busy:
+            try:
+                await send_command(
+                    link, mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT, seq, policy=URGENT
+                )
+                return
+            except CommandUnsupportedError:
+                pass
+            msg = link.codec.mission_set_current_encode(link.sysid, link.compid, seq)
             with link.subscribe(["MISSION_CURRENT"]) as sub:
                 link.ensure_up()
                 await self._opening(sub, msg, f"set-current to {seq}", lambda m: m.seq == seq)

@@ -66,6 +66,9 @@ FOUND_12 = {
     "at once: its mission, speeding up from rest, went on 2.9 m past a limit 0.8 m ahead "
     "(5.92 m)",
     3530: "the same at 10 m/s, 6 UAVs (5.94 m)",
+    3569: "gap swap of 12 UAVs at 10 m/s: an approach's MISSION_SET_CURRENT was lost and "
+    "the streamed MISSION_CURRENT taken for its answer; the resume ran the paused S-curve "
+    "up to 5.5 m/s, and the next pause stopped it 0.48 m from another vehicle",
     3585: "gap swap of 8 UAVs at 10 m/s: a vehicle whose limit was 1.5 m ahead at the "
     "start was let go (judged at rest) and paused at once; speeding up from its hover it "
     "went on 5.6 m (5.24 m)",
@@ -73,6 +76,7 @@ FOUND_12 = {
     3621: "crossing of 6 UAVs: the operator sent uav3 home during an abort (land) and "
     "aborted with LAND again; a re-sent RTL held up on uav3's reordering link arrived "
     "after the LAND, and uav3 flew home",
+    3790: "crossing of 8 UAVs at 10 m/s: the same (5.18 m)",
     3734: "(the fuzzer's own) a fleet hold sent while the flight was interrupted was taken "
     "as still in force after the operator's resume, which lets every vehicle go",
 }

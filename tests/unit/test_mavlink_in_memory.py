@@ -252,6 +252,55 @@ async def test_auto_made_again_after_a_late_brake_gets_its_speed_again() -> None
         await link.close()
 
 
+class CurrentItem:
+    """An autopilot flying item 4, which it says in every MISSION_CURRENT it streams; it
+    loses the first DO_SET_MISSION_CURRENT (or answers UNSUPPORTED, as one without the
+    command would) and counts the times it was made to fly an item afresh."""
+
+    def __init__(self, supported: bool) -> None:
+        self.peer: Peer | None = None
+        self.supported = supported
+        self.jumps = 0
+
+    def __call__(self, msg: Any) -> list[Any]:
+        assert self.peer is not None
+        codec = self.peer.codec
+        if msg.get_type() == "MISSION_SET_CURRENT":
+            self.jumps += 1
+            return [codec.mission_current_encode(msg.seq)]
+        if msg.get_type() != "COMMAND_LONG":
+            return []
+        if not self.supported:
+            return [codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_UNSUPPORTED)]
+        if msg.confirmation == 0:
+            return [codec.mission_current_encode(4)]  # the stream goes on; the command is lost
+        self.jumps += 1
+        return [
+            codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED),
+            codec.mission_current_encode(int(msg.param1)),
+        ]
+
+
+@pytest.mark.virtual_clock
+@pytest.mark.parametrize("supported", [True, False], ids=["command", "message"])
+async def test_the_current_item_is_set_by_an_acknowledged_command(supported: bool) -> None:
+    """The vehicle flies item 4 and streams MISSION_CURRENT 4; making 4 current again
+    (an approach flies it afresh) is done only once the vehicle says so: its ACK. The
+    stream answered the message even when the message was lost (fuzzed flights 3569 and
+    3790). Without the command, the message is sent."""
+    autopilot = CurrentItem(supported)
+    link, peer = await linked(autopilot)
+    autopilot.peer = peer
+    try:
+        await MissionClient(link).set_current(4)
+        assert autopilot.jumps == 1
+        commands = [m.confirmation for m in peer.sent("COMMAND_LONG")]
+        assert commands == ([0, 1] if supported else [0])
+        assert len(peer.sent("MISSION_SET_CURRENT")) == (0 if supported else 1)
+    finally:
+        await link.close()
+
+
 class StoringAutopilot:
     """ArduPilot's side of the mission protocol, booting first: NO_SPACE until booted,
     items stored and given back as ArduPilot rebuilds them (frame 3, DO items frame 0,
@@ -486,10 +535,10 @@ async def test_an_approach_flies_the_item_afresh_on_arducopter_not_its_paused_tr
         actions.mission_speed_m_s = 5.0
         await actions.pause_mission()
         await actions.approach(1.0)
-        assert [m.seq for m in peer.sent("MISSION_SET_CURRENT")] == [current]
         commands = [(m.command, m.param1, m.param2) for m in peer.sent("COMMAND_LONG")]
         pause, speed = mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, mavlink2.MAV_CMD_DO_CHANGE_SPEED
-        assert commands == [(pause, 0, 0), (speed, 1, 1.0), (pause, 1, 0)]
+        again = mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT
+        assert commands == [(pause, 0, 0), (again, current, 0), (speed, 1, 1.0), (pause, 1, 0)]
 
         peer.heard.clear()
         braking = True
