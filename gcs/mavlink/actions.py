@@ -308,9 +308,9 @@ class FlightActions:
         (DO_SET_MISSION_CURRENT, acknowledged), then slowed, keeps to the speed (SITL:
         0.3 / 1.0 / 0.8 / 0.9 m/s 1, 2, 4, 6 s later, 4.2 m in 6 s;
         bench/results/approach_vs_sitl.md). The resume after it changes nothing then.
-        One braked out of its mission goes back to
-        AUTO, which flies its item afresh, and only then gets the speed (AUTO again would
-        give it its mission's). PX4 resumes at the speed asked for."""
+        One braked out of its mission goes back to AUTO, which flies its item afresh, and
+        only then gets the speed (AUTO again would give it its mission's). PX4 resumes at
+        the speed asked for."""
         if self._braked_in_mission:
             await self.set_mode("AUTO", URGENT)
             self._braked_in_mission = False
