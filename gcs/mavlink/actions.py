@@ -110,19 +110,20 @@ class FlightActions:
     async def _outlast_late_copies(
         self, name: str, earlier: frozenset[str], ask: int, until: float
     ) -> None:
-        """Switch to `name` again whenever a HEARTBEAT shows one of the `earlier` modes,
-        until `until` or a later switch; AUTO again forgets the speed asked for, so that
-        goes again too."""
+        """Switch to `name` again at once (a copy held up on the way comes in right behind
+        the packet that overtook it) and whenever a HEARTBEAT shows one of the `earlier`
+        modes, until `until` or a later switch; AUTO again forgets the speed asked for, so
+        that goes again too."""
         history, loop = self.link.modes, asyncio.get_running_loop()
         with self.link.subscribe(["HEARTBEAT"]) as sub, contextlib.suppress(GcsError):
-            while history.is_latest(ask) and (left := until - loop.time()) > 0:
-                heartbeat = await sub.get(left)
-                if mode_name(int(self.link.autopilot), heartbeat.custom_mode) not in earlier:
-                    continue
-                if history.is_latest(ask):
+            again = True
+            while history.is_latest(ask) and loop.time() < until:
+                if again and history.is_latest(ask):
                     await self._switch(name, URGENT)
                     if name == "AUTO" and history.speed_m_s is not None:
                         await self.change_speed(history.speed_m_s)
+                heartbeat = await sub.get(max(0.0, until - loop.time()))
+                again = mode_name(int(self.link.autopilot), heartbeat.custom_mode) in earlier
 
     async def _switch(self, name: str, policy: CommandPolicy | None) -> None:
         autopilot = self.link.autopilot
