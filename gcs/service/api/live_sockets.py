@@ -29,15 +29,18 @@ class LiveSockets:
     @contextlib.asynccontextmanager
     async def admitted(self, websocket: WebSocket, subject: str) -> AsyncIterator[bool]:
         """Accept `websocket` and yield True, or close it (1013, saying which cap) and
-        yield False when the caps are reached."""
-        await websocket.accept()
+        yield False when the caps are reached. Its place is taken before the accept is
+        awaited: checked after it, two sockets opened one after the other could both be
+        let in under load."""
         full = self._full(subject)
         if full is not None:
+            await websocket.accept()
             await websocket.close(code=FULL, reason=full)
             yield False
             return
         self.open[subject] += 1
         try:
+            await websocket.accept()
             yield True
         finally:
             self.open[subject] -= 1
