@@ -203,6 +203,13 @@ class ModeSwitches:
 BRAKE, AUTO = 17, 3
 
 
+async def linked_switches() -> tuple[ModeSwitches, VehicleLink, Peer]:
+    autopilot = ModeSwitches()
+    link, peer = await linked(autopilot)
+    autopilot.peer = peer
+    return autopilot, link, peer
+
+
 @pytest.mark.virtual_clock
 @pytest.mark.parametrize(
     ("seen", "after_s", "undone"),
@@ -217,9 +224,7 @@ async def test_a_late_copy_of_an_earlier_mode_switch_is_switched_back(
     again: a re-sent RTL arrived after the LAND (fuzzed flight 3621). The LAND is made
     again. Much later, or a mode not asked for (the autopilot's own, a failsafe's), is
     left as it is."""
-    autopilot = ModeSwitches()
-    link, peer = await linked(autopilot)
-    autopilot.peer = peer
+    autopilot, link, peer = await linked_switches()
     actions = FlightActions(link)
     try:
         await actions.return_to_launch()
@@ -239,9 +244,7 @@ async def test_a_late_copy_of_an_earlier_mode_switch_is_switched_back(
 async def test_auto_made_again_after_a_late_brake_gets_its_speed_again() -> None:
     """The order's brake, then its go (AUTO at 3 m/s); a late copy of the brake is undone
     with AUTO and, since ArduCopter forgets a speed on entering AUTO, the speed again."""
-    autopilot = ModeSwitches()
-    link, peer = await linked(autopilot)
-    autopilot.peer = peer
+    autopilot, link, _ = await linked_switches()
     actions = FlightActions(link)
     try:
         await actions.brake_in_mission()
