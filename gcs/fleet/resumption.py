@@ -14,8 +14,6 @@ from gcs.fleet.crew import Crew, Fallback
 from gcs.fleet.events import Withdrawn
 from gcs.fleet.member import Member
 from gcs.fleet.outcome import VehicleOutcome
-from gcs.mission.build import Visit
-from gcs.mission.flight_plan import along_path
 from gcs.mission.motion import Gate
 
 LEFT_THE_PLAN = {
@@ -55,15 +53,11 @@ def _find(crew: Crew, member: Member) -> None:
     """Where the vehicle is on its plan and along its path, by its current item."""
     state = member.link.state
     member.tracker.find(state)
-    path = crew.flight.paths[member.uav_id]
+    places = crew.flight.places(member.uav_id)
     passed, ahead = member.tracker.places(state)
-    lo = _along(crew, member.uav_id, passed) if passed else 0.0
-    hi = _along(crew, member.uav_id, ahead) if ahead else path.length
+    lo = places[passed.seq] if passed else 0.0
+    hi = places[ahead.seq] if ahead else crew.flight.paths[member.uav_id].length
     member.along.find(state, lo, max(lo, hi))
-
-
-def _along(crew: Crew, uav: str, visit: Visit) -> float:
-    return along_path(crew.flight.paths[uav], crew.flight.frame.to_metres(visit.lat, visit.lon))
 
 
 def _withdraw(crew: Crew, uav: str, fallback: Fallback) -> None:

@@ -48,6 +48,10 @@ DEFAULT_CLEARANCE_M = 1.3
 (`stray_m`), so that the passing order can keep every pair 2R apart up to that speed."""
 STOPPING_NEXT = frozenset({Command.NAV_LAND, Command.NAV_RETURN_TO_LAUNCH, Command.NAV_TAKEOFF})
 """What ArduCopter will not fly into without stopping at the waypoint before."""
+PLACED = frozenset({Command.NAV_WAYPOINT, Command.NAV_LOITER_TIME, Command.NAV_LAND})
+"""The NAV items after take-off that are places on the path."""
+SAME_PLACE_M = 0.01
+"""Two points of a path this close to a waypoint are equally its place: the first counts."""
 
 
 class UnsafeSpeed(ValueError):
@@ -131,6 +135,10 @@ class FlightPlan:
             "passed). Flown alone from this file, nothing keeps it: fly it with mvo-gcs, "
             "or keep the others clear of its path."
         )
+
+    def places(self, uav_id: str) -> dict[int, float]:
+        """Metres along the UAV's path of its mission's NAV items, by seq."""
+        return item_places(self.missions[uav_id], self.paths[uav_id], self.frame)
 
     def visits(self, uav_id: str) -> list[Visit]:
         """The NAV items after take-off, when the timed flight reaches each."""
@@ -260,27 +268,49 @@ def stopping_points(mission: Mission, path: PlannedPath, frame: GridFrame) -> Fl
     """Where ArduCopter stops on the way: at a waypoint followed by a landing (or by a
     return home, a take-off, loiter turns), which it will not fly through (ModeAuto::
     set_next_wp), whatever the corner; in metres along `path`."""
-    after_takeoff = mission.items[takeoff_index(mission.items) + 1 :]
-    items = [i for i in after_takeoff if i.command != Command.DO_CHANGE_SPEED]
-    stops = []
-    for item, following in itertools.pairwise(items):
-        if item.command == Command.NAV_WAYPOINT and following.command in STOPPING_NEXT:
-            stops.append(along_path(path, frame.to_metres(item.lat, item.lon)))
-    return np.array(stops)
+    items = mission.items
+    seqs = [
+        seq
+        for seq in range(takeoff_index(items) + 1, len(items))
+        if items[seq].command != Command.DO_CHANGE_SPEED
+    ]
+    places = item_places(mission, path, frame)
+    return np.array(
+        [
+            places[seq]
+            for seq, following in itertools.pairwise(seqs)
+            if items[seq].command == Command.NAV_WAYPOINT
+            and items[following].command in STOPPING_NEXT
+        ]
+    )
+
+
+def item_places(mission: Mission, path: PlannedPath, frame: GridFrame) -> dict[int, float]:
+    """Metres along `path` of each NAV item after take-off that has a place, by seq. Each
+    is looked for at or after the one before: a path that comes back over itself (a
+    vehicle stepping aside and back) has a later item on its later pass (fuzzed flight
+    3983: a resumed vehicle found on the first pass was lost there while it flew on)."""
+    items = mission.items
+    places: dict[int, float] = {}
+    after = 0.0
+    for seq in range(takeoff_index(items) + 1, len(items)):
+        item = items[seq]
+        if item.command == Command.NAV_RETURN_TO_LAUNCH:
+            break
+        if item.command in PLACED:
+            after = along_path(path, frame.to_metres(item.lat, item.lon), after)
+            places[seq] = after
+    return places
 
 
 def timed_visits(mission: Mission, timed: TimedPath, frame: GridFrame) -> list[Visit]:
     """Each NAV item after take-off with the time the timed flight gets there (no holds:
     a flight waits where the passing order says, not at a waypoint)."""
-    items = mission.items
     visits = []
-    for seq in range(takeoff_index(items) + 1, len(items)):
-        item = items[seq]
-        if item.command == Command.NAV_RETURN_TO_LAUNCH:
-            break
-        if item.command not in (Command.NAV_WAYPOINT, Command.NAV_LAND):
+    for seq, s in item_places(mission, timed.path, frame).items():
+        item = mission.items[seq]
+        if item.command == Command.NAV_LOITER_TIME:
             continue
-        s = along_path(timed.path, frame.to_metres(item.lat, item.lon))
         at = timed.time_at(s)
         lands = item.command == Command.NAV_LAND
         visits.append(Visit(seq, at, at, item.lat, item.lon, lands))
@@ -289,16 +319,18 @@ def timed_visits(mission: Mission, timed: TimedPath, frame: GridFrame) -> list[V
     return visits
 
 
-def along_path(path: PlannedPath, point: Floats) -> float:
-    """The distance along `path` of its point nearest `point` (a mission's waypoint, in
-    metres from the grid's origin)."""
+def along_path(path: PlannedPath, point: Floats, after_m: float = 0.0) -> float:
+    """The distance along `path`, at or after `after_m`, of its point nearest `point` (a
+    mission's waypoint, in metres from the grid's origin); of near-equal ones, the first."""
     a, d = path.xy[:-1], np.diff(path.xy, axis=0)
     if len(d) == 0:
         return 0.0
-    length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-12)
-    f = np.clip(np.einsum("ij,ij->i", point - a, d) / length2, 0.0, 1.0)
-    k = int(np.argmin(np.hypot(*(point - (a + f[:, None] * d)).T)))
-    return float(path.s[k] + f[k] * np.sqrt(length2[k]))
+    length = np.maximum(np.hypot(*d.T), 1e-6)
+    earliest = np.clip((after_m - path.s[:-1]) / length, 0.0, 1.0)
+    f = np.clip(np.einsum("ij,ij->i", point - a, d) / length**2, earliest, 1.0)
+    miss = np.hypot(*(point - (a + f[:, None] * d)).T)
+    k = int(np.flatnonzero(miss <= miss.min() + SAME_PLACE_M)[0])
+    return float(path.s[k] + f[k] * length[k])
 
 
 def _leg_speeds(path: PlannedPath) -> Floats:

@@ -83,6 +83,9 @@ FOUND_12 = {
     3734: "(the fuzzer's own) a fleet hold sent while the flight was interrupted was taken "
     "as still in force after the operator's resume, which lets every vehicle go",
     3864: "gap swap of 12 UAVs at 5 m/s: as 3723, for uav5",
+    3983: "gap swap of 12 UAVs at 5 m/s with a restart: uav5 had stepped aside and come "
+    "back, and its next waypoint (where it started) was placed on its path's first pass; "
+    "found there and lost, it flew through where uav6 crept (0.11 m)",
 }
 """Flights of up to 12 UAVs (`--max-uavs 12`), beyond the CI batch's 6."""
 
@@ -97,8 +100,6 @@ OPEN_12 = {
     3676: "gap swap of 12 UAVs at 5 m/s: an object report left uav6 unresolved on its old "
     "path, and the rest's order had it wait for uav12 from 4.5 m past its limit; uav12 "
     "flew up to it (3.75 m). Passed before 16a795b, whose timing put the fleet elsewhere",
-    3983: "gap swap of 12 UAVs at 5 m/s with a restart, two holds and a resume: uav5 "
-    "flew through where uav6 crept (0.11 m); also at c6dde42",
 }
 """Open defects (campaign 3520-3999 with up to 12 UAVs, 2026-12-05): not fixed yet."""
 
