@@ -241,6 +241,14 @@ class Fleet:
 
         crew = self.crew
         self._stop_for_replan(missions)
+        crew.gatekeeper.expect(
+            checked.order,
+            {
+                uav: rest.skipped_m - crew.flight.paths[uav].skipped_m
+                for uav, rest in checked.paths.items()
+                if uav not in missions
+            },
+        )
         try:
             outcomes = await crew.each(upload_one, "replan", missions)
             taken = {uav for uav, outcome in outcomes.items() if outcome.ok}
@@ -259,6 +267,7 @@ class Fleet:
             return {**outcomes, **{uav: o for uav, o in started.items() if not o.ok}}
         finally:
             crew.replanning.clear()
+            crew.gatekeeper.expect_nothing()
 
     def along(self) -> dict[str, float]:
         """Where each vehicle is along its path, in metres."""

@@ -29,7 +29,7 @@ from gcs.fleet.path_progress import PathProgress
 from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.errors import GcsError
 from gcs.mission.motion import CopterLimits, Gate, StoppingRule
-from gcs.mission.passing_order import PassingOrder
+from gcs.mission.passing_order import Limit, PassingOrder
 
 
 @dataclass(frozen=True)
@@ -57,6 +57,8 @@ class Gatekeeper:
         self.waits_for: dict[str, str | None] = dict.fromkeys(self.limits)
         self.approach: dict[str, float | None] = {}  # of the vehicles approaching (CREEP)
         self.gone: set[str] = set()
+        self._coming: PassingOrder | None = None  # a live replan's, while it is uploaded
+        self._rest_from: dict[str, float] = {}  # where its rests begin, along today's paths
 
     def decide(
         self, progress: Mapping[str, PathProgress], gated: Iterable[str], starting: bool = False
@@ -68,7 +70,7 @@ class Gatekeeper:
         its pause: fuzzed flight 3585)."""
         at = {uav: np.inf if uav in self.gone else p.s for uav, p in progress.items()}
         chosen = [uav for uav in gated if uav not in self.gone]
-        limits = {uav: self.order.limit(uav, at) for uav in chosen}
+        limits = {uav: self._limit(uav, at) for uav in chosen}
         waited_on = {limit.leader for limit in limits.values() if limit.leader is not None}
         changes = []
         for uav in chosen:
@@ -88,9 +90,31 @@ class Gatekeeper:
             self.gates[uav], self.waits_for[uav] = gate, waits_for
         return changes
 
+    def _limit(self, uav: str, at: Mapping[str, float]) -> Limit:
+        limit = self.order.limit(uav, at)
+        if self._coming is None or uav not in self._rest_from:
+            return limit
+        on_rest = {u: at[u] - s for u, s in self._rest_from.items() if u in at}
+        coming = self._coming.limit(uav, on_rest)
+        coming_at = coming.at_m + self._rest_from[uav]
+        return Limit(coming_at, coming.leader) if coming_at < limit.at_m else limit
+
+    def expect(self, order: PassingOrder, rest_from: Mapping[str, float]) -> None:
+        """While a live replan is uploaded, the vehicles it keeps on their paths fly on,
+        and keep the order it will most likely bring too (the rests of their paths from
+        `rest_from` metres along them; the others are taken as at the starts of their new
+        paths): the order that came at the end of the uploads had one already 4.5 m past
+        where it was to wait for another, which flew up to it (fuzzed flight 3676)."""
+        self._coming, self._rest_from = order, dict(rest_from)
+
     def replan(self, order: PassingOrder, limits: Mapping[str, CopterLimits]) -> None:
         """A new order (a live replan); the gates stay as they are until the next look."""
         self.order, self.limits = order, dict(limits)
+        self.expect_nothing()
+
+    def expect_nothing(self) -> None:
+        """No replan is coming (it was made, or it failed)."""
+        self._coming, self._rest_from = None, {}
 
     def stop(self, uav_id: str) -> None:
         """`uav_id` stops where it is, whatever the order says, until gated again."""

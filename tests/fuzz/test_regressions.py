@@ -80,6 +80,9 @@ FOUND_12 = {
     3723: "random scatter of 10 UAVs at 10 m/s: aborted with RTL, then LAND; a copy of "
     "the RTL held up on uav4's link came in right behind the LAND, and uav4 was still in "
     "RTL 1 s after (the HEARTBEAT that showed it came later)",
+    3676: "gap swap of 12 UAVs at 5 m/s: during an object report's uploads uav6, kept on "
+    "its path, flew on 9 m; the new order (checked before the uploads) had it wait for "
+    "uav12 at a place it was 4.5 m past, and uav12 flew up to it (3.75 m)",
     3734: "(the fuzzer's own) a fleet hold sent while the flight was interrupted was taken "
     "as still in force after the operator's resume, which lets every vehicle go",
     3864: "gap swap of 12 UAVs at 5 m/s: as 3723, for uav5",
@@ -94,20 +97,3 @@ FOUND_12 = {
 def test_a_larger_flight_that_once_failed_flies_clean(seed: int) -> None:
     report = fly_seed(seed, max_uavs=12)
     assert not report.violations, f"{FOUND_12[seed]}\n{report.summary()}"
-
-
-OPEN_12 = {
-    3676: "gap swap of 12 UAVs at 5 m/s: an object report left uav6 unresolved on its old "
-    "path, and the rest's order had it wait for uav12 from 4.5 m past its limit; uav12 "
-    "flew up to it (3.75 m). Passed before 16a795b, whose timing put the fleet elsewhere",
-}
-"""Open defects (campaign 3520-3999 with up to 12 UAVs, 2026-12-05): not fixed yet."""
-
-
-@pytest.mark.parametrize(
-    "seed",
-    [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=OPEN_12[s])) for s in OPEN_12],
-)
-def test_a_larger_flight_with_an_open_defect(seed: int) -> None:
-    report = fly_seed(seed, max_uavs=12)
-    assert not report.violations, f"{OPEN_12[seed]}\n{report.summary()}"
