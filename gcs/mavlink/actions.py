@@ -247,10 +247,23 @@ class FlightActions:
         await self.command(mavlink2.MAV_CMD_MISSION_START, 0, 0, policy=URGENT)
 
     async def pause(self) -> None:
-        await self.command(mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, 0, policy=URGENT)
+        await self._pause_or_continue(pause=True)
 
     async def resume(self) -> None:
-        await self.command(mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, 1, policy=URGENT)
+        await self._pause_or_continue(pause=False)
+
+    async def _pause_or_continue(self, pause: bool) -> None:
+        """DO_PAUSE_CONTINUE; sent once more at once if the opposite one was asked for just
+        before: a re-sent copy of it held up on the way comes in right behind the packet
+        that overtook it (as a mode switch's does: fuzzed flights 3723, 3864), and a late
+        continue would send a paused vehicle on past where the order stops it. The second
+        is insurance: its answer (FAILED where ArduCopter has already reached its waypoint)
+        changes nothing."""
+        param = 0 if pause else 1
+        await self.command(mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, param, policy=URGENT)
+        if self.link.modes.pause_ended(pause, asyncio.get_running_loop().time()):
+            with contextlib.suppress(GcsError):
+                await self.command(mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, param, policy=URGENT)
 
     async def change_speed(self, speed_m_s: float) -> None:
         """The ground speed of the mission from here on (DO_CHANGE_SPEED, as a command)."""

@@ -31,6 +31,16 @@ class ModeHistory:
     """The last speed asked for (DO_CHANGE_SPEED): AUTO made again forgets it, so it is
     given again after."""
 
+    paused_at: dict[bool, float] = field(default_factory=dict)
+    """When a pause (True) and a continue (False) of the mission were last asked for."""
+
+    def pause_ended(self, pause: bool, now: float) -> bool:
+        """A pause (or continue, DO_PAUSE_CONTINUE) ended now: True if the opposite one
+        was asked for within LATE_COPY_S before, whose late copy could still undo it."""
+        opposite = self.paused_at.get(not pause)
+        self.paused_at[pause] = now
+        return opposite is not None and now - opposite < LATE_COPY_S
+
     def begin(self) -> int:
         """A switch begins; its number, which `is_latest` checks."""
         self.asks += 1

@@ -260,6 +260,52 @@ async def test_auto_made_again_after_a_late_brake_gets_its_speed_again() -> None
         await link.close()
 
 
+class PauseContinue:
+    """ArduCopter's DO_PAUSE_CONTINUE: accepted, except a pause where it already stopped
+    (at its waypoint: FAILED)."""
+
+    def __init__(self) -> None:
+        self.peer: Peer | None = None
+        self.paused = False
+
+    def __call__(self, msg: Any) -> list[Any]:
+        assert self.peer is not None
+        if msg.get_type() != "COMMAND_LONG":
+            return []
+        result = mavlink2.MAV_RESULT_ACCEPTED
+        if msg.param1 == 0 and self.paused:
+            result = mavlink2.MAV_RESULT_FAILED
+        self.paused = msg.param1 == 0
+        return [self.peer.codec.command_ack_encode(msg.command, result)]
+
+
+@pytest.mark.virtual_clock
+@pytest.mark.parametrize(
+    ("between_s", "again"), [(0.3, True), (LATE_COPY_S + 0.1, False)], ids=["soon", "long-after"]
+)
+async def test_a_pause_right_after_a_continue_is_sent_once_more(
+    between_s: float, again: bool
+) -> None:
+    """A continue, then a pause: a re-sent copy of the continue held up on the way would
+    come in right behind the pause and send the vehicle on, so the pause goes once more
+    at once (its FAILED, already stopped, is no error); the same for a continue after a
+    pause. Long after, once is enough."""
+    autopilot = PauseContinue()
+    link, peer = await linked(autopilot)
+    autopilot.peer = peer
+    actions = FlightActions(link)
+    try:
+        await actions.resume()
+        await asyncio.sleep(between_s)
+        await actions.pause()
+        await asyncio.sleep(between_s)
+        await actions.resume()
+        sent = [int(m.param1) for m in peer.sent("COMMAND_LONG")]
+        assert sent == ([1, 0, 0, 1, 1] if again else [1, 0, 1])
+    finally:
+        await link.close()
+
+
 class CurrentItem:
     """An autopilot flying item 4, which it says in every MISSION_CURRENT it streams; it
     loses the first DO_SET_MISSION_CURRENT (or answers UNSUPPORTED, as one without the
@@ -546,7 +592,8 @@ async def test_an_approach_flies_the_item_afresh_on_arducopter_not_its_paused_tr
         commands = [(m.command, m.param1, m.param2) for m in peer.sent("COMMAND_LONG")]
         pause, speed = mavlink2.MAV_CMD_DO_PAUSE_CONTINUE, mavlink2.MAV_CMD_DO_CHANGE_SPEED
         again = mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT
-        assert commands == [(pause, 0, 0), (again, current, 0), (speed, 1, 1.0), (pause, 1, 0)]
+        resumed = [(pause, 1, 0)] * 2  # right after the pause: once more at once
+        assert commands == [(pause, 0, 0), (again, current, 0), (speed, 1, 1.0), *resumed]
 
         peer.heard.clear()
         braking = True
