@@ -253,10 +253,11 @@ class Fleet:
             outcomes = await crew.each(upload_one, "replan", missions)
             taken = {uav for uav, outcome in outcomes.items() if outcome.ok}
             along = self.along()  # where each vehicle is now that the uploads are done
+            committed = self.committed()
 
             def rest() -> FlightPlan:
                 try:
-                    return self.continuation(along, changed, missions, starts_at, taken)
+                    return self.continuation(along, changed, missions, starts_at, taken, committed)
                 except FlightStuck:
                     if taken != set(missions):
                         raise
@@ -273,6 +274,19 @@ class Fleet:
         """Where each vehicle is along its path, in metres."""
         return {uav: m.along.s for uav, m in self.crew.members.items()}
 
+    def committed(self) -> dict[str, float]:
+        """How far on along its path each vehicle would go if told to stop now, metres:
+        from its speed, on a track flown at its approach's speed if it approaches a
+        limit, else its mission's."""
+        flight, keeper = self.crew.flight, self.crew.gatekeeper
+        committed = {}
+        for uav, m in self.crew.members.items():
+            track = keeper.approach.get(uav) if keeper.gates[uav] == Gate.CREEP else None
+            committed[uav] = flight.limits[uav].stopping_distance(
+                m.along.speed, m.along.accel, track_m_s=track or flight.cruise_at(uav, m.along.s)
+            )
+        return committed
+
     def continuation(
         self,
         along: dict[str, float],
@@ -280,9 +294,12 @@ class Fleet:
         missions: dict[str, Mission],
         starts_at: float,
         taken: set[str] | None = None,
+        committed: dict[str, float] | None = None,
     ) -> FlightPlan:
         """The rest of the flight from `along` with the new missions of `taken` (all of
-        `missions` if None), timed: FlightStuck if its passing order cannot be kept."""
+        `missions` if None), timed: FlightStuck if its passing order cannot be kept. The
+        vehicles it keeps on their paths lead what they would reach before they could
+        stop (`committed`, from `committed()` when `along` was taken)."""
         taken = set(missions) if taken is None else taken
         flight = continued(
             self.crew.flight,
@@ -290,6 +307,7 @@ class Fleet:
             {uav: changed[uav] for uav in taken},
             {uav: missions[uav] for uav in taken},
             starts_at,
+            committed or {},
         )
         _ = flight.timed
         return flight

@@ -196,6 +196,7 @@ def continued(
     changed: Mapping[str, Trajectory],
     missions: Mapping[str, Mission],
     now_s: float,
+    committed_m: Mapping[str, float] | None = None,
 ) -> FlightPlan:
     """The rest of a flight after a live replan at `now_s` (the flight's clock): each UAV
     from where it is (`along`, metres along its path), on its new trajectory (`changed`:
@@ -205,8 +206,9 @@ def continued(
     old clock would have it (on that clock, two vehicles of fuzzed flight 3034 seemed to
     pass 1.6 m apart at once, and the order kept no more than that). Pairs that still
     seem closer than their radii at once are ordered all the same (`order_together`;
-    fuzzed flight 3499 kept only 1.66 m otherwise), and its timing (`timed`) proves the
-    order has no cycle."""
+    fuzzed flight 3499 kept only 1.66 m otherwise); a kept vehicle leads what it would
+    meet before it could stop (`committed_m`: metres from where it is); and its timing
+    (`timed`) proves the order has no cycle."""
     cell = flight.scenario.grid.cell_size_m
     paths = {
         uav: PlannedPath.of(uav, changed[uav].points, cell, path.radius_m)
@@ -214,8 +216,12 @@ def continued(
         else path.after(along.get(uav, 0.0)).starting_at(now_s)
         for uav, path in flight.paths.items()
     }
+    committed = {u: m for u, m in (committed_m or {}).items() if u not in changed}
     order = PassingOrder.derive(
-        paths.values(), margin_m=2 * stray_m(flight.speed_m_s), order_together=True
+        paths.values(),
+        margin_m=2 * stray_m(flight.speed_m_s),
+        order_together=True,
+        committed_m=committed,
     )
     return dataclasses.replace(
         flight,

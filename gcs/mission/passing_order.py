@@ -218,10 +218,16 @@ class PassingOrder:
         margin_m: float,
         step_m: float = DEFAULT_STEP_M,
         order_together: bool = False,
+        committed_m: Mapping[str, float] | None = None,
     ) -> PassingOrder:
         """The order of the plan's close encounters, keeping every pair `2R + margin_m`
         apart where the plan leaves room for it (and what the plan keeps where not,
-        unless `order_together`: see above)."""
+        unless `order_together`: see above). A UAV that cannot stop within
+        `committed_m` of its path's start (one flying on at a live replan) leads every
+        encounter it meets within that, whatever the plan's times: told to wait there, it
+        would stop past the place (real ArduCopter: 4.75 m from the vehicle it was to let
+        by, with 2R 6 m). Where both are, the plan's times decide."""
+        committed = committed_m or {}
         sampled = {p.uav_id: (p, p.samples(step_m)) for p in paths}
         waits: dict[str, list[Waits]] = {uav: [] for uav in sampled}
         reach: dict[tuple[str, str], float] = {}
@@ -229,7 +235,10 @@ class PassingOrder:
             (pa, samples_a), (pb, samples_b) = sampled[a], sampled[b]
             wanted = pa.radius_m + pb.radius_m + margin_m
             within = pa.radius_m + pb.radius_m if order_together else 0.0
-            reach[(a, b)], found = _pair_waits(samples_a, samples_b, wanted, step_m, within)
+            reach[(a, b)], found = _pair_waits(
+                samples_a, samples_b, wanted, step_m, within,
+                (committed.get(a, 0.0), committed.get(b, 0.0)),
+            )  # fmt: skip
             for follower, leader, wait in ((b, a, found[0]), (a, b, found[1])):
                 if wait is not None:
                     waits[follower].append(Waits(leader, *wait))
@@ -260,7 +269,12 @@ Found = tuple[Floats, Floats, Floats] | None
 
 
 def _pair_waits(
-    a: Samples, b: Samples, wanted_m: float, step_m: float, order_within_m: float
+    a: Samples,
+    b: Samples,
+    wanted_m: float,
+    step_m: float,
+    order_within_m: float,
+    committed_m: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[float, tuple[Found, Found]]:
     """The reach kept between two sampled paths, and the waits of b for a and of a for b.
 
@@ -279,7 +293,16 @@ def _pair_waits(
     b_first = ~a_first & (out_b[j] <= in_a[i])
     together = ~(a_first | b_first)
     reach = wanted_m
-    if (d[together] < order_within_m).any():  # one leads in all of the pair's encounter
+    # would reach the encounter before it could stop: leads it all, unless the other
+    # is in it already (then they are ordered as a pair in reach at once, below)
+    wait_a = s_a[i].min() - step_m if len(i) else math.inf
+    wait_b = s_b[j].min() - step_m if len(j) else math.inf
+    clear = wait_a >= 0.0 and wait_b >= 0.0
+    a_bound, b_bound = clear and wait_a < committed_m[0], clear and wait_b < committed_m[1]
+    if a_bound != b_bound:
+        a_first = np.full(len(d), a_bound)
+        b_first = ~a_first
+    elif (d[together] < order_within_m).any():  # one leads in all of the pair's encounter
         a_first = np.full(len(d), in_a[i[together]].min() <= in_b[j[together]].min())
         b_first = ~a_first
     elif together.any():  # the plan flies them this close at once: keep what it keeps

@@ -50,7 +50,7 @@ async def replan_flight(
     now = fleet.plan_time()
     positions = _positions(fleet, frame, scenario.grid.cell_size_m)
     progress = {uav: t for uav, t in fleet.places_on_plan().items() if uav in positions}
-    along = fleet.along()
+    along, committed = fleet.along(), fleet.committed()
     speeds = {u.id: u.speed for u in scenario.uavs}
     autopilots = {u.id: fleet.autopilot(u.id) for u in scenario.uavs}
 
@@ -77,7 +77,11 @@ async def replan_flight(
         }
         if not missions:
             return result, missions, None
-        return result, missions, fleet.continuation(along, result.changed, missions, result.now)
+        return (
+            result,
+            missions,
+            fleet.continuation(along, result.changed, missions, result.now, committed=committed),
+        )
 
     result, missions, rest = await asyncio.to_thread(replanned)
     uploads = (

@@ -162,3 +162,24 @@ def test_after_a_replan_two_side_by_side_beyond_their_radii_keep_what_the_plan_k
     order = PassingOrder.derive([a, b], margin_m=0.5, order_together=True)
     assert order.reach_m[("a", "b")] == pytest.approx(6.3 - order.step_m)
     assert order.waits == {"a": [], "b": []}  # nobody waits for a whole side-by-side leg
+
+
+def test_a_vehicle_that_cannot_stop_short_of_a_crossing_leads_it() -> None:
+    """b crosses second in the plan, but flies on at a live replan and cannot stop before
+    the crossing (committed 60 m): a waits for it instead. Where both are committed, the
+    plan's times decide."""
+    paths = _crossing_pair(offset_s=5.0).values()
+    committed = PassingOrder.derive(paths, margin_m=0.5, committed_m={"b": 60.0})
+    assert committed.waits["b"] == []
+    assert committed.limit("a", {"a": 0.0, "b": 0.0}).leader == "b"
+    short = PassingOrder.derive(paths, margin_m=0.5, committed_m={"b": 30.0})
+    assert short.limit("b", {"a": 0.0, "b": 0.0}).leader == "a"  # it can stop before
+    both = PassingOrder.derive(paths, margin_m=0.5, committed_m={"a": 60.0, "b": 60.0})
+    assert both.waits["a"] == [] and both.limit("b", {"a": 0.0, "b": 0.0}).leader == "a"
+    # a already in the crossing: b cannot lead through it, committed or not
+    a, b = _crossing_pair(offset_s=5.0).values()
+    inside = [a.after(47.0), b]
+    plain = PassingOrder.derive(inside, margin_m=0.5, order_together=True)
+    kept = PassingOrder.derive(inside, margin_m=0.5, order_together=True, committed_m={"b": 60.0})
+    assert kept.limit("b", {"a": 0.0, "b": 0.0}) == plain.limit("b", {"a": 0.0, "b": 0.0})
+    assert kept.limit("b", {"a": 0.0, "b": 0.0}).leader == "a"
