@@ -60,6 +60,10 @@ ANSWER_WITHIN_S = 1.0
 HELD_DRIFT_M = 2.0
 """How far a vehicle held by the operator may move once it stands (it hovers in place)."""
 STANDING_M_S = 0.1
+STAND_S = 1.0
+"""How long a held vehicle must stay slower than STANDING_M_S to stand: one held just as
+it set off from a waypoint is still at rest there for a moment, and its paused S-curve
+then runs on a few metres (fuzzed flight 4116: 2.8 m)."""
 ARRIVED_M = 1.0  # within this of its goal, a vehicle has arrived
 GOAL_RADIUS_M = 2.0  # ArduCopter's WP_RADIUS_M: a mission's goal is reached within it
 WATCH_EVERY_S = 0.1
@@ -191,6 +195,7 @@ class Flight:
         self.due: list[_Due] = []  # effects of commands, not seen yet
         self.stopped_by: dict[int, Action] = {}  # held vehicles, by the hold that stopped them
         self.standing_at: dict[int, tuple[float, float]] = {}  # where each came to stand
+        self.still_since: dict[int, float] = {}  # since when each held one is slow
         self.arrived: dict[int, float] = {}  # sysid: loop time over its goal
         self._sent_at = 0.0
 
@@ -355,6 +360,7 @@ class Flight:
         for held in [u for u in self.stopped_by if action.uav is None or u == action.uav]:
             del self.stopped_by[held]
             self.standing_at.pop(held, None)
+            self.still_since.pop(held, None)
 
     def _check_effects(self) -> None:
         """Each command's effect seen on each vehicle it reached, or a violation once due."""
@@ -498,8 +504,7 @@ class Flight:
             east, north, _ = self.sim.local_positions()[sysid]
             standing = self.standing_at.get(sysid)
             if standing is None:
-                if math.hypot(*self.sim.vehicle(sysid).flight.body.velocity[:2]) < STANDING_M_S:
-                    self.standing_at[sysid] = (east, north)
+                self._note_standing(sysid, east, north)
                 continue
             drift = math.hypot(east - standing[0], north - standing[1])
             if drift > HELD_DRIFT_M:
@@ -507,6 +512,14 @@ class Flight:
                     f"{action.describe()}: uav{sysid} moved {drift:.1f} m while held"
                 )
                 del self.stopped_by[sysid]
+
+    def _note_standing(self, sysid: int, east: float, north: float) -> None:
+        assert self.sim is not None
+        now = asyncio.get_running_loop().time()
+        if math.hypot(*self.sim.vehicle(sysid).flight.body.velocity[:2]) >= STANDING_M_S:
+            self.still_since.pop(sysid, None)
+        elif now - self.still_since.setdefault(sysid, now) >= STAND_S:
+            self.standing_at[sysid] = (east, north)
 
     def _note_arrivals(self, goals: dict[int, tuple[float, float]]) -> None:
         """When each vehicle first comes within ARRIVED_M of its goal (the simulator's truth)."""
