@@ -209,8 +209,16 @@ class GateCommander:
             with contextlib.suppress(asyncio.CancelledError, GcsError):
                 await task
 
+    def _brought(self, uav_id: str) -> bool:
+        """At its gate; one to be braked only once braked (a brake asked for while a
+        pause was under way was taken as done by the pause's end: its mission, given
+        anew, sent it on, fuzzed flight 4703, 0.63 m)."""
+        wanted = self._wanted[uav_id]
+        braking = wanted == Gate.STOP and uav_id in self._braking
+        return self.applied[uav_id] == wanted and not braking
+
     async def _bring(self, uav_id: str) -> None:
-        while self.applied[uav_id] != self._wanted[uav_id]:
+        while not self._brought(uav_id):
             target = self._wanted[uav_id]
             try:
                 await self._change(uav_id, self.applied[uav_id], target)

@@ -41,6 +41,9 @@ FOUND = {
     3294: "a live replan restarted every kept rest at its moment, which brought two kept "
     "UAVs 0.198 cells apart; flown unsafe, the order kept uav2 only 2.69 m from uav5 "
     "(3.54 m flown)",
+    4703: "an object report's brake of uav3 was asked for while the order's pause of it "
+    "was under way, and the pause's end was taken as the brake; paused, not braked, uav3 "
+    "was sent on by its new mission and flew past uav4 (0.63 m)",
     4116: "(the fuzzer's own) uav4 held just as it set off from a waypoint was taken as "
     "standing there, at rest for a moment; its paused S-curve then ran on 2.8 m, as "
     "ArduCopter's does, and that was called moving while held",

@@ -43,6 +43,10 @@ class SlowLink:
         await self._send("pause")
         return "mission paused"
 
+    async def brake_in_mission(self) -> str:
+        await self._send("brake")
+        return "holding in BRAKE"
+
 
 async def test_the_operators_hold_is_not_undone_by_an_approach_under_way() -> None:
     link = SlowLink()
@@ -118,4 +122,24 @@ async def test_a_vehicle_braked_for_a_replan_goes_on_in_its_mission() -> None:
     commander.want("uav1", Gate.GO)
     await settled(commander)
     assert link.sent == ["brake", "resume"]
+    await commander.close()
+
+
+async def test_a_brake_asked_for_while_a_pause_is_under_way_still_brakes() -> None:
+    """The order pauses a vehicle over a slow link; a live replan asks for a brake before
+    the pause is answered. The pause's end is not the brake: the new mission would give
+    the pause up and send the vehicle on (fuzzed flight 4703: 0.63 m)."""
+    link = SlowLink()
+    commander = GateCommander(
+        {"uav1": cast(FlightActions, link)},
+        StoppingRule(),
+        cruise=lambda uav: 5.0,
+        on_failure=lambda uav, why: None,
+    )
+    commander.want("uav1", Gate.STOP)  # the pause, slowly
+    await asyncio.sleep(0)
+    commander.brake("uav1")  # the replan's
+    link.released.set()
+    await settled(commander)
+    assert link.sent == ["pause", "brake"], link.sent
     await commander.close()
