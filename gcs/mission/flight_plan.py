@@ -329,12 +329,13 @@ def along_path(path: PlannedPath, point: Floats, after_m: float = 0.0) -> float:
     """The distance along `path`, at or after `after_m`, of its point nearest `point` (a
     mission's waypoint, in metres from the grid's origin); of near-equal ones, the first."""
     a, d = path.xy[:-1], np.diff(path.xy, axis=0)
-    if len(d) == 0:
-        return 0.0
+    ahead = path.s[1:] >= after_m  # the legs that reach `after_m`
+    if not ahead.any():
+        return path.length
     length = np.maximum(np.hypot(*d.T), 1e-6)
     earliest = np.clip((after_m - path.s[:-1]) / length, 0.0, 1.0)
     f = np.clip(np.einsum("ij,ij->i", point - a, d) / length**2, earliest, 1.0)
-    miss = np.hypot(*(point - (a + f[:, None] * d)).T)
+    miss = np.where(ahead, np.hypot(*(point - (a + f[:, None] * d)).T), np.inf)
     k = int(np.flatnonzero(miss <= miss.min() + SAME_PLACE_M)[0])
     return float(path.s[k] + f[k] * length[k])
 

@@ -95,15 +95,18 @@ class Recorder:
         self.sent.append("resume")
 
 
-def recorded() -> tuple[GateCommander, Recorder]:
-    link = Recorder()
-    commander = GateCommander(
+def commanding(link: object) -> GateCommander:
+    return GateCommander(
         {"uav1": cast(FlightActions, link)},
         StoppingRule(),
         cruise=lambda uav: 5.0,
         on_failure=lambda uav, why: None,
     )
-    return commander, link
+
+
+def recorded() -> tuple[GateCommander, Recorder]:
+    link = Recorder()
+    return commanding(link), link
 
 
 async def settled(commander: GateCommander) -> None:
@@ -130,12 +133,7 @@ async def test_a_brake_asked_for_while_a_pause_is_under_way_still_brakes() -> No
     the pause is answered. The pause's end is not the brake: the new mission would give
     the pause up and send the vehicle on (fuzzed flight 4703: 0.63 m)."""
     link = SlowLink()
-    commander = GateCommander(
-        {"uav1": cast(FlightActions, link)},
-        StoppingRule(),
-        cruise=lambda uav: 5.0,
-        on_failure=lambda uav, why: None,
-    )
+    commander = commanding(link)
     commander.want("uav1", Gate.STOP)  # the pause, slowly
     await asyncio.sleep(0)
     commander.brake("uav1")  # the replan's
