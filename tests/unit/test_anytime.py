@@ -4,7 +4,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from planner.cases import load_case
@@ -80,6 +80,7 @@ def test_an_unsolved_fleet_at_the_deadline_is_refused_with_its_conflicts() -> No
 
 @settings(max_examples=6, deadline=None)
 @given(seed=st.integers(0, 10_000), rounds=st.integers(0, 2))
+@example(seed=753, rounds=0)  # boxed in: drawn once under load, 2026-12-05
 def test_more_improvement_never_makes_a_plan_worse(seed: int, rounds: int) -> None:
     """The anytime property without a clock: one more round of improvement (what more
     budget buys) starts from the same first safe plan and can only lower the cost."""
@@ -87,7 +88,10 @@ def test_more_improvement_never_makes_a_plan_worse(seed: int, rounds: int) -> No
     base: dict[str, Any] = {"seed": seed, "population": 10, "iterations": 30, "time_budget_s": None}
     fewer = plan(scenario, PlannerSettings(improve_rounds=rounds, **base))
     more = plan(scenario, PlannerSettings(improve_rounds=rounds + 1, **base))
-    assert fewer.feasible and more.feasible and _safe(scenario, more)
+    if not fewer.feasible:  # a UAV boxed in by the generator (seed 753: walls and an
+        assert not more.feasible  # object round its start): nothing to improve
+        return
+    assert more.feasible and _safe(scenario, more)
     assert more.metrics.first_safe_cost == fewer.metrics.first_safe_cost
     assert more.metrics.cost is not None and fewer.metrics.cost is not None
     assert more.metrics.cost <= fewer.metrics.cost + 1e-9
