@@ -206,8 +206,9 @@ def continued(
     old clock would have it (on that clock, two vehicles of fuzzed flight 3034 seemed to
     pass 1.6 m apart at once, and the order kept no more than that). Pairs that still
     seem closer than their radii at once are ordered all the same (`order_together`;
-    fuzzed flight 3499 kept only 1.66 m otherwise); a kept vehicle leads what it would
-    meet before it could stop (`committed_m`: metres from where it is); and its timing
+    fuzzed flight 3499 kept only 1.66 m otherwise); a vehicle leads what its rest begins
+    inside, and a kept one what it would meet before it could stop (`committed_m`:
+    metres from where it is); and its timing
     (`timed`) proves the order has no cycle."""
     cell = flight.scenario.grid.cell_size_m
     paths = {

@@ -226,7 +226,8 @@ class PassingOrder:
         `committed_m` of its path's start (one flying on at a live replan) leads every
         encounter it meets within that, whatever the plan's times: told to wait there, it
         would stop past the place (real ArduCopter: 4.75 m from the vehicle it was to let
-        by, with 2R 6 m). Where both are, the plan's times decide."""
+        by, with 2R 6 m). So does, with `order_together`, one whose path begins inside
+        an encounter (`_bound`). Where both are, the plan's times decide."""
         committed = committed_m or {}
         sampled = {p.uav_id: (p, p.samples(step_m)) for p in paths}
         waits: dict[str, list[Waits]] = {uav: [] for uav in sampled}
@@ -293,12 +294,12 @@ def _pair_waits(
     b_first = ~a_first & (out_b[j] <= in_a[i])
     together = ~(a_first | b_first)
     reach = wanted_m
-    # would reach the encounter before it could stop: leads it all, unless the other
-    # is in it already (then they are ordered as a pair in reach at once, below)
-    wait_a = s_a[i].min() - step_m if len(i) else math.inf
-    wait_b = s_b[j].min() - step_m if len(j) else math.inf
-    clear = wait_a >= 0.0 and wait_b >= 0.0
-    a_bound, b_bound = clear and wait_a < committed_m[0], clear and wait_b < committed_m[1]
+    a_bound, b_bound = _bound(
+        s_a[i].min() - step_m if len(i) else math.inf,
+        s_b[j].min() - step_m if len(j) else math.inf,
+        committed_m,
+        inside_leads=order_within_m > 0.0,
+    )
     if a_bound != b_bound:
         a_first = np.full(len(d), a_bound)
         b_first = ~a_first
@@ -312,6 +313,20 @@ def _pair_waits(
     b_waits = _waits(s_b[j[a_first]], s_a[i[a_first]], out_a[i[a_first]], in_b[j[a_first]], step_m)
     a_waits = _waits(s_a[i[b_first]], s_b[j[b_first]], out_b[j[b_first]], in_a[i[b_first]], step_m)
     return reach, (b_waits, a_waits)
+
+
+def _bound(
+    wait_a: float, wait_b: float, committed_m: tuple[float, float], inside_leads: bool
+) -> tuple[bool, bool]:
+    """Which of the two must lead their whole encounter, whatever the plan's times: one
+    already in it where the rest of a flight starts (`inside_leads`; it cannot wait
+    short of it, and the other would pass it where it stands: fuzzed flight 4494,
+    4.10 m), else one that would reach it before it could stop. Where both are in it,
+    neither is bound: they are a pair in reach at once."""
+    inside = (wait_a < 0.0, wait_b < 0.0)
+    if any(inside):
+        return inside if inside_leads and not all(inside) else (False, False)
+    return wait_a < committed_m[0], wait_b < committed_m[1]
 
 
 def _waits(at: Floats, after: Floats, leaves: Floats, arrives: Floats, step_m: float) -> Found:

@@ -47,6 +47,9 @@ FOUND = {
     4116: "(the fuzzer's own) uav4 held just as it set off from a waypoint was taken as "
     "standing there, at rest for a moment; its paused S-curve then ran on 2.8 m, as "
     "ArduCopter's does, and that was called moving while held",
+    4494: "uav3, kept on its path by an object report, was already inside its encounter "
+    "with the replanned uav5 where the rest began; the new order had uav3 wait for uav5, "
+    "which flew by it where it stood, 4.10 m away",
 }
 
 
@@ -54,22 +57,6 @@ FOUND = {
 def test_a_flight_that_once_failed_flies_clean(seed: int) -> None:
     report = fly_seed(seed)
     assert not report.violations, f"{FOUND[seed]}\n{report.summary()}"
-
-
-OPEN = {
-    4494: "gap swap of 6 UAVs at 10 m/s: an object report replanned uav5 past uav3, which "
-    "stood inside their encounter waiting; the new order had uav3 wait for uav5, which "
-    "flew by it 4.10 m away (also at 7d39404)",
-}
-"""Open defects (campaign 4000-4800, 2026-12-05): not fixed yet."""
-
-
-@pytest.mark.parametrize(
-    "seed", [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=OPEN[s])) for s in OPEN]
-)
-def test_a_flight_with_an_open_defect(seed: int) -> None:
-    report = fly_seed(seed)
-    assert not report.violations, f"{OPEN[seed]}\n{report.summary()}"
 
 
 FOUND_12 = {

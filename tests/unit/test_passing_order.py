@@ -183,3 +183,25 @@ def test_a_vehicle_that_cannot_stop_short_of_a_crossing_leads_it() -> None:
     kept = PassingOrder.derive(inside, margin_m=0.5, order_together=True, committed_m={"b": 60.0})
     assert kept.limit("b", {"a": 0.0, "b": 0.0}) == plain.limit("b", {"a": 0.0, "b": 0.0})
     assert kept.limit("b", {"a": 0.0, "b": 0.0}).leader == "a"
+
+
+def _path(uav_id: str, corners: list[list[float]], speed_m_s: float) -> PlannedPath:
+    xy = np.asarray(corners, dtype=float)
+    t = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]) / speed_m_s
+    return PlannedPath(uav_id, xy, t, t, 3.0)
+
+
+def test_a_vehicle_whose_rest_begins_inside_an_encounter_leads_it() -> None:
+    """After a live replan, a's rest begins 4 m from b's new path, which comes head-on
+    and passes a's start later. The plan's times have b meet a first where they pass
+    each other at once, so b would lead the whole encounter and a wait where it already
+    stands, with b flying by it 4 m away (fuzzed flight 4494, 4.10 m): a leads instead.
+    Before the flight, nobody leads for having started close."""
+    a = _path("a", [[47.0, 0.0], [100.0, 0.0]], 5.0)
+    b = _path("b", [[120.0, 4.0], [40.0, 4.0]], 5.0)
+    rest = PassingOrder.derive([a, b], margin_m=0.5, order_together=True)
+    assert rest.waits["a"] == []
+    assert rest.limit("b", {"a": 0.0, "b": 0.0}).leader == "a"
+    assert rest.limit("b", {"a": a.length + 1.0, "b": 0.0}).at_m == np.inf  # a is through
+    planned = PassingOrder.derive([a, b], margin_m=0.5)
+    assert planned.reach_m[("a", "b")] < 6.0  # what the plan keeps; nobody leads it all
