@@ -2,8 +2,9 @@
 the MAV_RESULT a real autopilot gives, plus messages to send after the COMMAND_ACK.
 
 Refusal faults (`Faults.fail_arming`, `refuse_takeoff`, `refuse_commands`) are applied
-here, before a command reaches the flight controller. The retry window that gives a
-repeated command (higher `confirmation`) the same answer is a protocol timer: wall-clock.
+here, before a command reaches the flight controller. A command re-sent with a higher
+`confirmation` is carried out again, as ArduPilot does (it never reads the field): a
+take-off re-sent once the vehicle lifts off is refused, as flying already.
 """
 
 from __future__ import annotations
@@ -22,8 +23,6 @@ from .telemetry import TelemetrySchedule
 
 UNSUPPORTED: int = mavlink.MAV_RESULT_UNSUPPORTED
 FORCE_MAGIC = 21196
-RETRY_WINDOW_S = 5.0
-"""Wall seconds in which a command repeated with a higher `confirmation` gets the same answer."""
 FAULT_ARMING_TEXT = "Arm: Hardware safety switch"
 """A real ArduPilot refusal that can come at any time (the safety switch), for `fail_arming`."""
 FAULT_TAKEOFF_TEXT = "Takeoff refused"
@@ -40,14 +39,13 @@ class Command:
     id: int
     params: tuple[float, ...]
     """param1..param7; COMMAND_INT's x, y arrive as degE7 integers in params[4:6]."""
-    confirmation: int
     sender: Sender
 
     @classmethod
     def from_message(cls, msg: Message, sender: Sender) -> Command:
         if msg.get_type() == "COMMAND_INT":
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
-            return cls(msg.command, params, 0, sender)
+            return cls(msg.command, params, sender)
         params = (
             msg.param1,
             msg.param2,
@@ -57,7 +55,7 @@ class Command:
             msg.param6,
             msg.param7,
         )
-        return cls(msg.command, params, msg.confirmation, sender)
+        return cls(msg.command, params, sender)
 
 
 @dataclass
@@ -67,13 +65,6 @@ class Outcome:
     """Message ids to send after the ACK (REQUEST_MESSAGE)."""
     reboot: bool = False
     """Reboot once the ACK is out (PREFLIGHT_REBOOT_SHUTDOWN)."""
-
-
-@dataclass(frozen=True)
-class _Answered:
-    params: tuple[float, ...]
-    outcome: Outcome
-    at: float
 
 
 def _whole(param: float) -> int:
@@ -102,22 +93,10 @@ class CommandHandler:
         self._current_changed = current_changed
         self._faults = faults
         self._say = say
-        self._answered: dict[tuple[int, int, int], _Answered] = {}
 
-    def handle(self, command: Command, now: float, wall_now: float) -> Outcome:
-        """Answer a command at simulated time `now`; `wall_now` times the retry window."""
-        key = (command.sender.sysid, command.sender.compid, command.id)
-        previous = self._answered.get(key)
-        if (
-            command.confirmation > 0
-            and previous is not None
-            and previous.params == command.params
-            and wall_now - previous.at <= RETRY_WINDOW_S
-        ):
-            return previous.outcome  # a retry of a command already carried out
-        outcome = self._refused(command) or self._carry_out(command, now)
-        self._answered[key] = _Answered(command.params, outcome, wall_now)
-        return outcome
+    def handle(self, command: Command, now: float) -> Outcome:
+        """Answer a command at simulated time `now`."""
+        return self._refused(command) or self._carry_out(command, now)
 
     def _carry_out(self, command: Command, now: float) -> Outcome:
         handler = self._handlers.get(command.id)

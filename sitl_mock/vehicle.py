@@ -337,7 +337,7 @@ class Vehicle:
     def _on_command(self, msg: Message, sender: Sender, now: float) -> None:
         command = Command.from_message(msg, sender)
         outcome = self._texts_after_ack(
-            lambda: self.commands.handle(command, now, self._wall()),
+            lambda: self.commands.handle(command, now),
             lambda outcome: messages.command_ack(
                 command.id, outcome.result, sender.sysid, sender.compid
             ),

@@ -494,7 +494,10 @@ def test_arming_in_auto_fails_and_unknown_commands_are_unsupported(make_sim):
     )  # disarmed
 
 
-def test_guided_takeoff_with_a_repeated_confirmation_is_idempotent(make_sim):
+def test_a_re_sent_guided_takeoff_is_carried_out_again_as_on_arducopter(make_sim):
+    """ArduPilot never reads `confirmation`: a re-sent NAV_TAKEOFF is a new one, accepted
+    while the vehicle is still on the ground and refused once it has lifted off (as a
+    lost ACK's re-send is refused: the ground station takes that for a take-off)."""
     sim, gcs = make_sim()
     assert sim.wait_until(lambda: sim.state(1).estimate_ready, 3.0)
     gcs.link.mav.set_mode_send(1, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4)
@@ -504,7 +507,9 @@ def test_guided_takeoff_with_a_repeated_confirmation_is_idempotent(make_sim):
     assert heartbeat.base_mode == 0xD9 and heartbeat.custom_mode == 4
     takeoff = (mavlink.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10)
     assert gcs.command(*takeoff).result == 0
-    assert gcs.command(*takeoff, confirmation=1).result == 0
+    assert gcs.command(*takeoff, confirmation=1).result == 0  # still on the ground
+    assert sim.wait_until(lambda: sim.state(1).alt > 1.0, 5.0)
+    assert gcs.command(*takeoff, confirmation=2).result == mavlink.MAV_RESULT_FAILED
     assert sim.wait_until(lambda: sim.state(1).alt > 9.5, 5.0)
     assert gcs.command(*takeoff).result == mavlink.MAV_RESULT_FAILED  # already flying
 
