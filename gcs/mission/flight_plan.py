@@ -242,7 +242,9 @@ def _with_landings_cleared(flight: FlightPlan, margin_m: float) -> FlightPlan:
     radius = {uav: path.radius_m for uav, path in flight.paths.items()}
 
     def derive(paths: Mapping[str, PlannedPath]) -> PassingOrder | None:
-        order = PassingOrder.derive(paths.values(), margin_m=margin_m)
+        order = PassingOrder.derive(
+            paths.values(), margin_m=margin_m, like=(flight.order, flight.paths)
+        )
         return order if order.narrowest_margin_m(radius) >= margin_m - 1e-9 else None
 
     timed: list[FlightPlan] = []  # each one scored, its timing kept (a whole simulation)

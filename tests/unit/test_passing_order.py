@@ -8,10 +8,10 @@ import itertools
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from gcs.mission.passing_order import PassingOrder, PlannedPath
+from gcs.mission.passing_order import PassingOrder, PlannedPath, Waits
 from planner.experiments.scenario_generator import crossing_scenario, random_scenario
 from planner.model.scenario import Scenario
 from planner.pipeline import PlannerSettings, plan
@@ -205,3 +205,40 @@ def test_a_vehicle_whose_rest_begins_inside_an_encounter_leads_it() -> None:
     assert rest.limit("b", {"a": a.length + 1.0, "b": 0.0}).at_m == np.inf  # a is through
     planned = PassingOrder.derive([a, b], margin_m=0.5)
     assert planned.reach_m[("a", "b")] < 6.0  # what the plan keeps; nobody leads it all
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 40), st.integers(0, 40)), min_size=1, max_size=60),
+    st.integers(-1, 42),
+)
+@example([(0, 4), (4, 5)], 5)  # a rise by the least step
+def test_a_waits_limit_is_the_first_place_whose_leader_has_not_passed(
+    pairs: list[tuple[int, int]], leader_at: int
+) -> None:
+    """`Waits` keeps only the places where what it needs of the leader rises; the limit
+    is the one a search of every sample pair finds."""
+    at, after = (np.array(sorted(pairs), dtype=float) / 4).T
+    wait = Waits("b", at, after, np.zeros((len(at), 2)))
+    needed = np.maximum.accumulate(after)
+    waiting = np.flatnonzero(needed >= leader_at / 4)
+    assert wait.limit(leader_at / 4) == (at[waiting[0]] if len(waiting) else np.inf)
+
+
+def test_an_order_derived_like_another_derives_only_the_pairs_whose_paths_changed() -> None:
+    """Holding one UAV short changes only its own pairs: the others are taken as they
+    were, and the order is the one derived from scratch."""
+    _, paths = planned("random", 1)
+    order = PassingOrder.derive(paths.values(), margin_m=0.6)
+    held_uav = sorted(paths)[0]
+    held = {**paths, held_uav: paths[held_uav].held(5.0, 30.0)}
+    again = PassingOrder.derive(held.values(), margin_m=0.6, like=(order, paths))
+    fresh = PassingOrder.derive(held.values(), margin_m=0.6)
+    assert again.reach_m == fresh.reach_m
+    for follower, waits in fresh.waits.items():
+        assert [w.leader for w in again.waits[follower]] == [w.leader for w in waits]
+        for kept, derived in zip(again.waits[follower], waits, strict=True):
+            assert np.array_equal(kept.at, derived.at) and kept.needed == derived.needed
+            untouched = held_uav not in (follower, kept.leader)
+            previous = next(w for w in order.waits[follower] if w.leader == kept.leader)
+            assert (kept is previous) == untouched
