@@ -155,10 +155,13 @@ def flight_plan(
     max_speed_m_s: float = DEFAULT_SPEED_M_S,
     turn_radius_m: float = TURN_RADIUS_M,
     limits: Mapping[str, CopterLimits] | None = None,
+    landings_cleared: bool = True,
 ) -> FlightPlan:
     """The plan flown with its fastest UAV at `max_speed_m_s`; `limits` are each
     vehicle's (ArduCopter's defaults where not given). UnsafeSpeed if it cannot be kept.
-    The missions and the order come at once; the timing when first asked for."""
+    The missions and the order come at once; the timing when first asked for. Without
+    `landings_cleared` nobody is held short of a landing (`_with_landings_cleared`): the
+    verdict and the missions are the same, for a second less work on twelve UAVs."""
     if not 0 < max_speed_m_s <= MAX_SPEED_M_S:
         raise UnsafeSpeed(
             f"max_speed_m_s must be above 0 and at most {MAX_SPEED_M_S:g} m/s (ArduCopter's "
@@ -187,7 +190,7 @@ def flight_plan(
         max_speed_m_s, factor, slow_plan, slow_scenario, missions, paths, leg_speeds,
         vehicle_limits, order, altitude_m,
     )  # fmt: skip
-    return _with_landings_cleared(flight, margin)
+    return _with_landings_cleared(flight, margin) if landings_cleared else flight
 
 
 def continued(

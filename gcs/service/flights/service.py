@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import functools
 import logging
 from collections.abc import Awaitable, Callable, Iterable
 from typing import Any
@@ -118,7 +119,10 @@ class FlightService:
         scenario = Scenario(**(await self.scenarios.get(plan_row.scenario_id)).body)
         _require_origin(scenario, plan_row.scenario_id, f"plan {plan_id}")
         autopilots = dict.fromkeys(uavs, Autopilot.ARDUPILOT)
-        await asyncio.to_thread(flight_plan, plan, scenario, autopilots, **options)
+        await asyncio.to_thread(
+            functools.partial(flight_plan, landings_cleared=False),
+            plan, scenario, autopilots, **options,
+        )  # fmt: skip
         row: FlightRow = await self.book.flights.add(
             FlightRow(plan_id=plan_id, bindings=bindings, options=options)
         )
