@@ -211,8 +211,7 @@ def continued(
     seem closer than their radii at once are ordered all the same (`order_together`;
     fuzzed flight 3499 kept only 1.66 m otherwise); a vehicle leads what its rest begins
     inside, and a kept one what it would meet before it could stop (`committed_m`:
-    metres from where it is); and its timing
-    (`timed`) proves the order has no cycle."""
+    metres from where it is); and its timing (`timed`) proves the order has no cycle."""
     cell = flight.scenario.grid.cell_size_m
     paths = {
         uav: PlannedPath.of(uav, changed[uav].points, cell, path.radius_m)
