@@ -59,6 +59,25 @@ def test_a_flight_that_once_failed_flies_clean(seed: int) -> None:
     assert not report.violations, f"{FOUND[seed]}\n{report.summary()}"
 
 
+OPEN_12 = {
+    6698: "crossing of 12 UAVs at 5 m/s: uav6's pause, to stop it 5.9 m short of its "
+    "limit, was lost four times running (20 % loss in): it went on accelerating and "
+    "stopped 1.5 m past the limit, inside its encounter with uav4, beyond the order's "
+    "0.75 m margin; nothing re-orders around a vehicle found inside, and uav4 passed it "
+    "5.43 m away (found at 4f03b4f, once the mock carried out re-sent commands)",
+}
+"""Open defects (campaign 6400-6800, 2026-12-05): not fixed yet."""
+
+
+@pytest.mark.parametrize(
+    "seed",
+    [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=OPEN_12[s])) for s in OPEN_12],
+)
+def test_a_larger_flight_with_an_open_defect(seed: int) -> None:
+    report = fly_seed(seed, max_uavs=12)
+    assert not report.violations, f"{OPEN_12[seed]}\n{report.summary()}"
+
+
 FOUND_12 = {
     3428: "with 10 UAVs: the kept UAVs a live replan replanned made a passing order the "
     "flight's timing could not keep (FlightStuck); it was found after the uploads, a 500, "
