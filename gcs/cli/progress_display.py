@@ -13,6 +13,7 @@ from gcs.fleet.events import (
     Aborted,
     FleetEvent,
     FlightEnded,
+    LeadTaken,
     MissionsStarted,
     Progress,
     StartCancelled,
@@ -62,6 +63,9 @@ def event_line(event: FleetEvent) -> str | None:
             return f"{uav} waits for {leader} to pass first ({gap:.0f} m short){edging}"
         case WaitOver(uav_id=uav):
             return f"{uav} flies on"
+        case LeadTaken(uav_id=uav, past_m=past, turned=turned):
+            pairs = ", ".join(f"{waits} waits for {first}" for first, waits in turned)
+            return f"{uav} stopped {past:.1f} m inside an encounter and goes first: {pairs}"
         case VehicleFinished(uav_id=uav, distance_to_goal_m=d):
             return f"{uav}: landed {d:.1f} m from its goal"
         case Aborted(mode=mode, reason=reason):

@@ -45,6 +45,7 @@ class EventKind(StrEnum):
     ITEM_REACHED = "ItemReached"
     WAITING = "Waiting"
     WAIT_OVER = "WaitOver"
+    LEAD_TAKEN = "LeadTaken"
     OPERATOR_HELD = "OperatorHeld"
     OPERATOR_CONTINUED = "OperatorContinued"
     WITHDRAWN = "Withdrawn"
@@ -146,6 +147,18 @@ class WaitOver(FleetEvent):
 
     kind = EventKind.WAIT_OVER
     uav_id: str
+
+
+@dataclass(frozen=True)
+class LeadTaken(FleetEvent):
+    """A vehicle stood `past_m` past the place it was to wait at, inside an encounter
+    (its stop came late): it goes first there, and the order is turned round for the
+    pairs `turned` (each: who now goes first, who now waits), `gcs.fleet.lead_taking`."""
+
+    kind = EventKind.LEAD_TAKEN
+    uav_id: str
+    past_m: float
+    turned: tuple[tuple[str, str], ...]
 
 
 @dataclass(frozen=True)

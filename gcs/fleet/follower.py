@@ -18,6 +18,7 @@ from gcs.fleet.events import (
     FlightEnded,
     FlightOutcome,
     ItemReached,
+    LeadTaken,
     Progress,
     VehicleFailed,
     VehicleFinished,
@@ -144,7 +145,11 @@ class Follower:
                 m.actions.mission_speed_m_s = crew.flight.cruise_at(uav, m.along.s)
         gated = [uav for uav, m in crew.members.items() if self._gated(uav, m)]
         along = {uav: m.along for uav, m in crew.members.items()}
-        for change in crew.gatekeeper.decide(along, gated):
+        changes = crew.gatekeeper.decide(along, gated)
+        for uav, past, turned in crew.gatekeeper.leads_taken:
+            crew.bus.publish(LeadTaken(uav, past, tuple(turned)))
+        crew.gatekeeper.leads_taken.clear()
+        for change in changes:
             crew.commander.want(change.uav_id, change.gate, change.speed_m_s)
             if change.gate == Gate.GO:
                 crew.bus.publish(WaitOver(change.uav_id))

@@ -25,11 +25,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gcs.fleet.lead_taking import CanWait, take_the_lead
 from gcs.fleet.path_progress import PathProgress
 from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.errors import GcsError
 from gcs.mission.motion import CopterLimits, Gate, StoppingRule
 from gcs.mission.passing_order import Limit, PassingOrder
+
+STRANDED_M = 0.5
+"""A vehicle stopped this far past its limit or more is inside the encounter it was to
+wait short of (a pause lost again and again): it leads it instead."""
+STOPPED_M_S = 0.2
 
 
 @dataclass(frozen=True)
@@ -59,6 +65,9 @@ class Gatekeeper:
         self.gone: set[str] = set()
         self._coming: PassingOrder | None = None  # a live replan's, while it is uploaded
         self._rest_from: dict[str, float] = {}  # where its rests begin, along today's paths
+        self.leads_taken: list[tuple[str, float, list[tuple[str, str]]]] = []
+        """Vehicles that took the lead (`lead_taking`), how far past their limits they
+        stood, the pairs turned round; for the flight to report, then clear."""
 
     def decide(
         self, progress: Mapping[str, PathProgress], gated: Iterable[str], starting: bool = False
@@ -69,6 +78,7 @@ class Gatekeeper:
         (judged at rest, one with a limit 1.5 m ahead was let go and went on 5.6 m after
         its pause: fuzzed flight 3585)."""
         at = {uav: np.inf if uav in self.gone else p.s for uav, p in progress.items()}
+        self._let_the_stranded_lead(progress, at)
         chosen = [uav for uav in gated if uav not in self.gone]
         limits = {uav: self._limit(uav, at) for uav in chosen}
         waited_on = {limit.leader for limit in limits.values() if limit.leader is not None}
@@ -89,6 +99,34 @@ class Gatekeeper:
                 changes.append(GateChange(uav, gate, waits_for, gap, speed))
             self.gates[uav], self.waits_for[uav] = gate, waits_for
         return changes
+
+    def _let_the_stranded_lead(
+        self, progress: Mapping[str, PathProgress], at: Mapping[str, float]
+    ) -> None:
+        """A vehicle stopped well inside an encounter it was to wait short of leads it
+        (`lead_taking`), where the order can be turned round for it."""
+        for uav, p in progress.items():
+            if p.speed >= STOPPED_M_S or uav in self.gone:
+                continue
+            past = p.s - self.order.limit(uav, at).at_m
+            if past <= STRANDED_M:
+                continue
+            ends = {u: q.path.length for u, q in progress.items()}
+            taken = take_the_lead(self.order, uav, at, ends, self._can_wait(progress))
+            if taken is not None:
+                self.order = taken.order
+                self.leads_taken.append((uav, past, taken.turned))
+
+    def _can_wait(self, progress: Mapping[str, PathProgress]) -> CanWait:
+        def can_wait(order: PassingOrder, uav: str, leader: str) -> bool:
+            wait = next(w for w in order.waits[uav] if w.leader == leader)
+            p = progress[uav]
+            room = wait.limit(progress[leader].s) - p.s
+            return uav not in self.gone and room > self.rule.needed_m(
+                p.speed, p.accel, self.limits[uav]
+            )
+
+        return can_wait
 
     def _limit(self, uav: str, at: Mapping[str, float]) -> Limit:
         limit = self.order.limit(uav, at)

@@ -25,6 +25,11 @@ wait may point backwards in the plan's time, so a cycle is no longer ruled out b
 construction; the flight's timing (`flight_timing`) then proves there is none: a
 simulated flight in which every wait was met is an order of all the events that keeps
 every wait, which a cycle would forbid (FlightStuck otherwise).
+
+In flight, a vehicle whose stop came late can stand inside an encounter it was to wait
+short of. There the encounter's waits are turned round (`swapped`), which can point
+backwards too; `reach` then shows from where everyone is whether anyone would wait for
+ever (`gcs.fleet.lead_taking`).
 """
 
 from __future__ import annotations
@@ -45,6 +50,9 @@ from gcs.mission.geodesy import Floats
 
 DEFAULT_STEP_M = 0.1
 MOVE_EPS_M = 1e-6
+ENCOUNTER_GAP_M = 1.0
+"""Places a follower waits at, this far apart or more along its path, are two encounters
+with its leader, not one."""
 
 
 @dataclass(frozen=True)
@@ -270,6 +278,56 @@ class PassingOrder:
             if at < best.at_m:
                 best = Limit(at, wait.leader)
         return best
+
+    def swapped(self, follower: str, leader: str, limit_m: float) -> PassingOrder | None:
+        """The same order, but with `follower` leading `leader` through the encounter in
+        which it was to wait at `limit_m` (None if it waits there for nobody): it stopped
+        past that place, inside the encounter, and the leader would pass it where it
+        stands (fuzzed flight 6698: a pause lost four times running, 1.5 m past its
+        limit, passed 5.43 m away with 2R 6 m). Each wait of the encounter is turned
+        round: the sample pair that kept the follower short of `at` until the leader
+        was past `after` now keeps the leader short of its own sample until the follower
+        is past its. Other encounters of the pair keep their order."""
+        wait = next((w for w in self.waits.get(follower, ()) if w.leader == leader), None)
+        if wait is None:
+            return None
+        at = np.asarray(wait.at)
+        starts = np.concatenate([[0], np.flatnonzero(np.diff(at) > ENCOUNTER_GAP_M) + 1])
+        first = starts[max(0, int(np.searchsorted(at[starts], limit_m, side="right")) - 1)]
+        last = next((k for k in starts if k > first), len(at))
+        turned = slice(first, last)
+        kept = np.r_[0:first, last : len(at)]
+        two_steps = 2 * self.step_m
+        waits = {uav: list(ws) for uav, ws in self.waits.items()}
+        waits[follower] = [w for w in waits[follower] if w is not wait]
+        if len(kept):
+            waits[follower].append(Waits(leader, at[kept], wait.after[kept], wait.plan_times[kept]))
+        reverse = [w for w in waits[leader] if w.leader == follower]
+        waits[leader] = [w for w in waits[leader] if w.leader != follower]
+        new_at = np.concatenate([wait.after[turned] - two_steps, *(w.at for w in reverse)])
+        new_after = np.concatenate([at[turned] + two_steps, *(w.after for w in reverse)])
+        times = np.vstack([wait.plan_times[turned][:, ::-1], *(w.plan_times for w in reverse)])
+        order = np.lexsort((new_after, new_at))
+        waits[leader].append(Waits(follower, new_at[order], new_after[order], times[order]))
+        return PassingOrder(waits, self.reach_m, self.step_m)
+
+    def reach(self, progress: Mapping[str, float], ends: Mapping[str, float]) -> dict[str, float]:
+        """How far each UAV can get from `progress` under this order, whoever waits for
+        whom (`inf`: to its end, where it lands and is out of the way). Every limit only
+        rises as the leaders go on, so letting each UAV go to its limit until none can go
+        further reaches every place the order lets anyone reach: a UAV short of its end
+        then waits, directly or through others, for itself."""
+        at = {uav: math.inf if s >= ends[uav] else s for uav, s in progress.items()}
+        moving = True
+        while moving:
+            moving = False
+            for uav, s in at.items():
+                if s == math.inf:
+                    continue
+                to = min(self.limit(uav, at).at_m, ends[uav])
+                if to > s + MOVE_EPS_M:
+                    at[uav], moving = (math.inf if to >= ends[uav] else to), True
+        return at
 
     def narrowest_margin_m(self, radii: Mapping[str, float]) -> float:
         """The smallest reach beyond 2R over all pairs: what the order keeps in hand."""

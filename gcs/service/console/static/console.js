@@ -653,10 +653,14 @@ function followClock(message) {
   if (clocks.length) setTime(Math.max(...clocks) / message.pace_factor);
 }
 
+// A list shows its items, a pair as "first>second" (LeadTaken's turned: who goes first).
+const shown = (v) => (Array.isArray(v) ? v.map((x) => [].concat(x).join(">")).join(",") : v);
+
 function describeEvent(e) {
   const skip = new Set(["type", "kind", "at", "uav_id", "id"]);
-  return Object.entries(e).filter(([k, v]) => !skip.has(k) && v !== "" && v != null && typeof v !== "object")
-    .map(([k, v]) => `${k}=${typeof v === "number" ? fmt(v) : v}`).join(" ");
+  return Object.entries(e)
+    .filter(([k, v]) => !skip.has(k) && v !== "" && v != null && (typeof v !== "object" || Array.isArray(v)))
+    .map(([k, v]) => `${k}=${typeof v === "number" ? fmt(v) : shown(v)}`).join(" ");
 }
 
 function addEvent(e) {

@@ -1,0 +1,93 @@
+"""A vehicle stopped inside an encounter it was to wait short of leads it there.
+
+The passing order keeps two vehicles apart as long as each stays behind its limit. One
+whose stop came late (a pause lost again and again on a lossy link) can stand past its
+limit, inside the encounter, and its leader would then pass it where it stands (fuzzed
+flight 6698: a pause lost four times running, uav6 stood 1.5 m inside, and uav4 passed it
+5.43 m away, 2R 6 m). It cannot go back, so the order is turned round there: it goes
+first, and the leader waits for it, if the leader can still stop short.
+
+Turned waits can point backwards in the plan's time, so they can make waits go round in
+a circle (the leader waits for it, it waits further on for a third, who waits for the
+leader). Each such circle is broken where one of its waits can be turned round too, and
+the new order is taken only if everyone then reaches their end (`PassingOrder.reach`);
+otherwise the order stays as it was.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+from gcs.mission.passing_order import Limit, PassingOrder
+
+CanWait = Callable[[PassingOrder, str, str], bool]
+"""Whether, under an order, a vehicle (the first) can still stop where it waits for
+another (the second)."""
+
+
+@dataclass(frozen=True)
+class LeadTaken:
+    """The order after a vehicle took the lead, and the pairs turned: (first, waits)."""
+
+    order: PassingOrder
+    turned: list[tuple[str, str]]
+
+
+def take_the_lead(
+    order: PassingOrder,
+    uav: str,
+    at: Mapping[str, float],
+    ends: Mapping[str, float],
+    can_wait: CanWait,
+) -> LeadTaken | None:
+    """`uav` (at `at[uav]`, everyone at `at`, metres along their paths ending at `ends`)
+    leads every encounter it stands inside; then every circle of waits is broken where a
+    wait can be turned. None if a leader it stands before can no longer stop short, or
+    a circle cannot be broken."""
+    turned: list[tuple[str, str]] = []
+
+    def turn(order: PassingOrder, follower: str, limit: Limit) -> PassingOrder | None:
+        leader = limit.leader
+        if leader is None or {follower, leader} in [set(pair) for pair in turned]:
+            return None  # a pair is turned once: turned back, it would go round for ever
+        swapped = order.swapped(follower, leader, limit.at_m)
+        if swapped is None or not can_wait(swapped, leader, follower):
+            return None
+        turned.append((follower, leader))
+        return swapped
+
+    limit = order.limit(uav, at)
+    while limit.at_m < at[uav]:
+        inside = turn(order, uav, limit)
+        if inside is None:
+            return None
+        order, limit = inside, inside.limit(uav, at)
+    for _ in range(4 * len(at)):
+        circle = _circle(order, order.reach(at, ends), uav)
+        if not circle:
+            return LeadTaken(order, turned)
+        broken = next((o for w in circle if (o := turn(order, *w)) is not None), None)
+        if broken is None:
+            return None
+        order = broken
+    return None
+
+
+def _circle(
+    order: PassingOrder, reached: Mapping[str, float], start: str
+) -> list[tuple[str, Limit]]:
+    """A circle of waits among the vehicles that stop for ever (`PassingOrder.reach`),
+    each with the limit it waits at, from `start` on if it is one of them; [] if
+    everyone gets through."""
+    stuck = [uav for uav, s in reached.items() if s < math.inf]
+    if not stuck:
+        return []
+    uav, seen = (start if start in stuck else stuck[0]), []
+    while uav not in seen:
+        seen.append(uav)
+        uav = order.limit(uav, reached).leader or ""
+        if uav not in reached:
+            return []
+    return [(u, order.limit(u, reached)) for u in seen[seen.index(uav) :]]
