@@ -8,12 +8,14 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, note, settings
+from hypothesis import strategies as st
 
 from gcs.fleet.gatekeeper import Gatekeeper
 from gcs.fleet.lead_taking import take_the_lead
 from gcs.mission.motion import CopterLimits, Gate
 from gcs.mission.passing_order import PassingOrder, PlannedPath, Waits
-from tests.unit.test_passing_order import _crossing_pair, _path
+from tests.unit.test_passing_order import PLANS, _crossing_pair, _path, fly_adversary, planned
 from tests.unit.test_replan_gates import _flying
 
 LIMITS = {"a": CopterLimits(speed_m_s=5.0), "b": CopterLimits(speed_m_s=5.0)}
@@ -139,3 +141,40 @@ def test_a_circle_that_cannot_be_broken_leaves_the_order_as_it_was() -> None:
         return (uav, leader) == ("l", "f")
 
     assert take_the_lead(_three(), "f", at, ends, only_l_for_f) is None
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(PLANS, st.integers(0, 2**31 - 1))
+def test_whoever_stops_late_and_takes_the_lead_nobody_waits_for_ever_or_comes_too_close(
+    family_seed: tuple[str, int], seed: int
+) -> None:
+    """The adversary of test_passing_order, which now and then pushes a vehicle waiting
+    at its limit 0.6 to 3 m past it (a stop that came late), where it takes the lead if
+    it can (a leader that can still stop: short of its new limit): nobody is ever stuck,
+    and no pair comes closer than its reach."""
+    _, paths = planned(*family_seed)
+    ends = {uav: p.length for uav, p in paths.items()}
+    turned: list[list[tuple[str, str]]] = []
+
+    def overshoot(
+        order: PassingOrder, at: dict[str, float], rng: np.random.Generator
+    ) -> PassingOrder:
+        if rng.random() > 0.05:
+            return order
+        waiting = [u for u in at if at[u] < ends[u] and order.limit(u, at).at_m - at[u] < 1e-6]
+        for uav in rng.permutation(waiting):  # the first that can take the lead
+            pushed = {**at, uav: min(at[uav] + rng.uniform(0.6, 3.0), ends[uav])}
+
+            def can_wait(turned_order: PassingOrder, follower: str, leader: str) -> bool:
+                wait = next(w for w in turned_order.waits[follower] if w.leader == leader)
+                return wait.limit(pushed[leader]) > pushed[follower]  # noqa: B023
+
+            taken = take_the_lead(order, str(uav), pushed, ends, can_wait)
+            if taken is not None:
+                at.update(pushed)
+                turned.append(taken.turned)
+                return taken.order
+        return order
+
+    fly_adversary(paths, PassingOrder.derive(paths.values(), margin_m=0.6), seed, overshoot)
+    note(f"leads taken: {turned}")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -110,17 +111,32 @@ def test_whatever_the_delays_someone_can_always_move_and_nobody_comes_closer_tha
     always within their limits: the fleet never ends up with every vehicle still up stuck
     at its limit, and no pair ever comes closer than its reach (less a step)."""
     _, paths = planned(*family_seed)
-    order = PassingOrder.derive(paths.values(), margin_m=0.6)
+    fly_adversary(paths, PassingOrder.derive(paths.values(), margin_m=0.6), seed)
+
+
+Overshoot = Callable[[PassingOrder, dict[str, float], np.random.Generator], PassingOrder]
+
+
+def fly_adversary(
+    paths: dict[str, PlannedPath],
+    order: PassingOrder,
+    seed: int,
+    overshoot: Overshoot | None = None,
+) -> None:
+    """The adversary above; `overshoot`, called every step, may move a vehicle on past
+    its limit (a stop that came late) and give the order to keep from then on."""
     rng = np.random.default_rng(seed)
     at = dict.fromkeys(paths, 0.0)
     lengths = {uav: p.length for uav, p in paths.items()}
     for _ in range(20_000):
         up = [uav for uav in paths if at[uav] < np.inf]
         if not up:
-            break
+            return
         for uav in up:  # over its goal: down at some point, never before
             if at[uav] >= lengths[uav] and rng.random() < 0.05:
                 at[uav] = np.inf
+        if overshoot is not None:
+            order = overshoot(order, at, rng)
         flying = [uav for uav in up if at[uav] < lengths[uav]]
         room = {uav: min(order.limit(uav, at).at_m, lengths[uav]) - at[uav] for uav in flying}
         movable = [uav for uav in flying if room[uav] > 1e-9]
@@ -133,8 +149,7 @@ def test_whatever_the_delays_someone_can_always_move_and_nobody_comes_closer_tha
                 continue
             gap = np.hypot(*np.subtract(paths[a].position(at[a]), paths[b].position(at[b])))
             assert gap >= order.reach_m[(a, b)] - order.step_m - 1e-6, (a, b, at)
-    else:
-        pytest.fail("the adversary ran out of steps")
+    pytest.fail("the adversary ran out of steps")
 
 
 def test_after_a_replan_two_closer_than_their_radii_at_once_are_ordered_all_the_same() -> None:
