@@ -198,12 +198,17 @@ def build_mission(
     finish: Finish = "land",
     acceptance_radius_m: float | None = None,
     holds: bool = True,
+    airborne: bool = False,
 ) -> Mission:
     """The mission flying one plan trajectory; `speed` is the UAV's cruise speed in cells/s.
 
     Items: [home (ArduPilot only)], NAV_TAKEOFF, DO_CHANGE_SPEED, then a NAV_WAYPOINT per
     route place (a DO_CHANGE_SPEED before any leg at another speed), then NAV_LAND at the
-    last place or, with `finish="rtl"`, NAV_RETURN_TO_LAUNCH after it.
+    last place or, with `finish="rtl"`, NAV_RETURN_TO_LAUNCH after it. `airborne`: for a
+    vehicle already flying (a live replan), the first place is a waypoint too, flown to
+    from wherever the vehicle is (a NAV_TAKEOFF in the air is done at once, and the
+    vehicle went straight for the next place: fuzzed flight 7648, from 12 m short of
+    where the new path began, into another's way).
     """
     if altitude_m <= 0:
         raise ValueError(f"altitude_m must be positive, got {altitude_m}")
@@ -219,7 +224,7 @@ def build_mission(
     radius = acceptance_radius_m or 0.0  # 0: the autopilot's default radius
     cruise = speed * frame.cell_size_m
     items = [_takeoff(x[0], y[0], altitude_m), _change_speed(cruise)]
-    if route.hold[0] > 0:
+    if route.hold[0] > 0 or airborne:
         items.append(_waypoint(x[0], y[0], altitude_m, route.hold[0], radius))
     for k, leg_speed in enumerate(route.speeds * frame.cell_size_m, start=1):
         if not math.isclose(leg_speed, cruise, rel_tol=SPEED_RTOL):

@@ -210,16 +210,23 @@ def continued(
     pass 1.6 m apart at once, and the order kept no more than that). Pairs that still
     seem closer than their radii at once are ordered all the same (`order_together`;
     fuzzed flight 3499 kept only 1.66 m otherwise); a vehicle leads what its rest begins
-    inside, and a kept one what it would meet before it could stop (`committed_m`:
-    metres from where it is); and its timing (`timed`) proves the order has no cycle."""
+    inside, a kept one what it would meet before it could stop (`committed_m`: metres
+    from where it is), and a replanned one what it meets on its way to its new path
+    (`begun_where_it_is`: it comes to rest somewhere on it, not knowing where); and its
+    timing (`timed`) proves the order has no cycle."""
     cell = flight.scenario.grid.cell_size_m
+    new = {
+        uav: PlannedPath.of(uav, trajectory.points, cell, flight.paths[uav].radius_m)
+        for uav, trajectory in changed.items()
+    }
     paths = {
-        uav: PlannedPath.of(uav, changed[uav].points, cell, path.radius_m)
+        uav: begun_where_it_is(path, along.get(uav, 0.0), new[uav])
         if uav in changed
         else path.after(along.get(uav, 0.0)).starting_at(now_s)
         for uav, path in flight.paths.items()
     }
     committed = {u: m for u, m in (committed_m or {}).items() if u not in changed}
+    committed |= {uav: paths[uav].length - path.length for uav, path in new.items()}
     order = PassingOrder.derive(
         paths.values(),
         margin_m=2 * stray_m(flight.speed_m_s),
@@ -232,6 +239,33 @@ def continued(
         paths=paths,
         leg_speeds=_legs(paths),
         order=order,
+    )
+
+
+def begun_where_it_is(old: PlannedPath, along_m: float, new: PlannedPath) -> PlannedPath:
+    """A replanned vehicle's `new` path, begun where it is (`along_m` along its `old`
+    one): stopped for the replan, it comes to rest somewhere on its way to where `new`
+    begins, which was only foreseen (`Fleet.stopping_places`), and then flies there
+    (`build_mission(airborne=True)`). Out of the order's sight on the way, it stopped 12 m
+    short of it, and another vehicle was let by 5.65 m from it (fuzzed flight 7648).
+    The way there is timed as flown just before `new`; `continued` has the vehicle lead
+    what it meets on it."""
+    here, start = np.asarray(old.position(along_m)), new.xy[0]
+    s_start = along_path(old, start, after_m=along_m)
+    ahead = np.hypot(*(np.asarray(old.position(s_start)) - start)) < SAME_PLACE_M
+    between = (old.s > along_m) & (old.s < s_start) & ahead  # the old path's corners on it
+    way = np.vstack([here, old.xy[between], start])
+    legs = np.hypot(*np.diff(way, axis=0).T)
+    if legs.sum() < SAME_PLACE_M:
+        return new
+    to_go = legs.sum() - np.concatenate([[0.0], np.cumsum(legs)])
+    speed = max(float(_leg_speeds(new).max(initial=0.0)), 1e-3)
+    t = new.arrive[0] - to_go / speed
+    return dataclasses.replace(
+        new,
+        xy=np.vstack([way[:-1], new.xy]),
+        arrive=np.concatenate([t[:-1], new.arrive]),
+        leave=np.concatenate([t[:-1], new.leave]),
     )
 
 

@@ -72,6 +72,7 @@ async def replan_flight(
                 finish=finish,
                 acceptance_radius_m=turn_radius_m,
                 holds=False,  # the passing order makes it wait where another is in its way
+                airborne=True,
             )
             for uav, trajectory in result.changed.items()
         }

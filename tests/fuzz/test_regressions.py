@@ -50,6 +50,10 @@ FOUND = {
     4494: "uav3, kept on its path by an object report, was already inside its encounter "
     "with the replanned uav5 where the rest began; the new order had uav3 wait for uav5, "
     "which flew by it where it stood, 4.10 m away",
+    7648: "2 UAVs at 10 m/s, an object report: uav1 was braked for it 12 m short of where "
+    "its new path began (foreseen from a pause's reach), and flew from there straight for "
+    "its next waypoint (a NAV_TAKEOFF in the air is done at once); the order took it for "
+    "standing at its new start and let uav2 by 5.65 m from it",
 }
 
 
