@@ -118,13 +118,21 @@ class Gatekeeper:
                 self.leads_taken.append((uav, past, taken.turned))
 
     def _can_wait(self, progress: Mapping[str, PathProgress]) -> CanWait:
+        """Whether a vehicle can wait for another where an order has it wait: it can
+        still stop short of that place, or it stands still already and the other passes
+        it no closer than their radii (fuzzed flight 8403: both stopped inside their
+        encounter; the one stranded 2 m past its limit went round the one standing)."""
+
         def can_wait(order: PassingOrder, uav: str, leader: str) -> bool:
             wait = next(w for w in order.waits[uav] if w.leader == leader)
-            p = progress[uav]
-            room = wait.limit(progress[leader].s) - p.s
-            return uav not in self.gone and room > self.rule.needed_m(
-                p.speed, p.accel, self.limits[uav]
-            )
+            p, first = progress[uav], progress[leader]
+            if uav in self.gone:
+                return False
+            if wait.limit(first.s) - p.s > self.rule.needed_m(p.speed, p.accel, self.limits[uav]):
+                return True
+            way = first.path.between(first.s, max(wait.after))
+            gap = np.hypot(*(way - np.asarray(p.path.position(p.s))).T).min()
+            return p.speed < STOPPED_M_S and gap >= p.path.radius_m + first.path.radius_m
 
         return can_wait
 

@@ -5,7 +5,8 @@ whose stop came late (a pause lost again and again on a lossy link) can stand pa
 limit, inside the encounter, and its leader would then pass it where it stands (fuzzed
 flight 6698: a pause lost four times running, uav6 stood 1.5 m inside, and uav4 passed it
 5.43 m away, 2R 6 m). It cannot go back, so the order is turned round there: it goes
-first, and the leader waits for it, if the leader can still stop short.
+first, and the leader waits for it, if the leader can still stop short, or stands still
+already where the other's way keeps 2R from it (`CanWait`: the flight decides).
 
 Turned waits can point backwards in the plan's time, so they can make waits go round in
 a circle (the leader waits for it, it waits further on for a third, who waits for the
@@ -66,7 +67,7 @@ def take_the_lead(
         order, limit = inside, inside.limit(uav, at)
     for _ in range(4 * len(at)):
         circle = _circle(order, order.reach(at, ends), uav)
-        if not circle:
+        if circle is None:
             return LeadTaken(order, turned)
         broken = next((o for w in circle if (o := turn(order, *w)) is not None), None)
         if broken is None:
@@ -77,17 +78,16 @@ def take_the_lead(
 
 def _circle(
     order: PassingOrder, reached: Mapping[str, float], start: str
-) -> list[tuple[str, Limit]]:
+) -> list[tuple[str, Limit]] | None:
     """A circle of waits among the vehicles that stop for ever (`PassingOrder.reach`),
-    each with the limit it waits at, from `start` on if it is one of them; [] if
-    everyone gets through."""
+    each with the limit it waits at, from `start` on if it is one of them; None if
+    everyone gets through. (Each of them waits for another of them: one that gets
+    through lets everyone by.)"""
     stuck = [uav for uav, s in reached.items() if s < math.inf]
     if not stuck:
-        return []
+        return None
     uav, seen = (start if start in stuck else stuck[0]), []
     while uav not in seen:
         seen.append(uav)
         uav = order.limit(uav, reached).leader or ""
-        if uav not in reached:
-            return []
     return [(u, order.limit(u, reached)) for u in seen[seen.index(uav) :]]

@@ -153,6 +153,16 @@ class PlannedPath:
         along = self.s
         return float(np.interp(s, along, self.xy[:, 0])), float(np.interp(s, along, self.xy[:, 1]))
 
+    def between(self, lo_m: float, hi_m: float, step_m: float = DEFAULT_STEP_M) -> Floats:
+        """Points of the path from `lo_m` to `hi_m` metres along it, `step_m` apart or
+        less, both ends included: (n, 2)."""
+        hi_m = max(lo_m, hi_m)
+        s = np.linspace(lo_m, hi_m, max(2, int(np.ceil((hi_m - lo_m) / step_m)) + 1))
+        along = self.s
+        return np.column_stack(
+            [np.interp(s, along, self.xy[:, 0]), np.interp(s, along, self.xy[:, 1])]
+        )
+
     def samples(self, step_m: float) -> tuple[Floats, Floats, Floats, Floats]:
         """Points every `step_m` or less, and every vertex: (s, xy, when the UAV comes
         within `step_m` of the point, when it is last within `step_m` of it)."""

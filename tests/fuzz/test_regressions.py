@@ -54,6 +54,10 @@ FOUND = {
     "its new path began (foreseen from a pause's reach), and flew from there straight for "
     "its next waypoint (a NAV_TAKEOFF in the air is done at once); the order took it for "
     "standing at its new start and let uav2 by 5.65 m from it",
+    8403: "6 UAVs at 10 m/s, 20 % loss in: uav2 stopped 2 m past its limit inside its "
+    "encounter with uav1, which stood there too (waiting for uav3), 6.36 m off; it could "
+    "not stop short any more, so nobody took the lead, and uav1 went by 5.65 m from uav2. "
+    "A vehicle standing still can wait where it stands if the other's way keeps 2R from it",
 }
 
 

@@ -71,6 +71,23 @@ def test_otherwise_the_order_stays(a_at: float, b_past: float, b_speed: float) -
     assert keeper.leads_taken == []
 
 
+@pytest.mark.parametrize(("a_at", "taken"), [(43.8, True), (44.5, False)])
+def test_a_leader_standing_inside_the_encounter_waits_there_if_passed_far_enough(
+    a_at: float, taken: bool
+) -> None:
+    """Both stopped inside their encounter (fuzzed flight 8403: a waiting for a third,
+    b 2 m past its limit): b goes first if its way passes a no closer than 2R (a 6.2 m
+    from b's path), else nothing changes (5.5 m)."""
+    paths, keeper = _crossing()
+    limit = keeper.order.limit("b", {"a": a_at, "b": 0.0}).at_m
+    progress = _flying(paths, {"a": a_at, "b": limit + 2.0})
+    progress["a"].speed = progress["b"].speed = 0.0
+
+    keeper.decide(progress, ["a", "b"])
+
+    assert [uav for uav, _, _ in keeper.leads_taken] == (["b"] if taken else [])
+
+
 def test_only_the_encounter_it_stands_in_is_turned() -> None:
     """b crosses a's path twice, both times after a: turned where b stands, b still
     waits for a at the second crossing."""
