@@ -175,7 +175,10 @@ class MissionRunner:
 
     def pause(self, now: float, on_the_track: bool) -> None:
         """Stop and hover: ArduCopter `on_the_track` (AC_WPNav runs the track's clock down,
-        the item goes on), PX4 by slowing along the velocity."""
+        the item goes on: a waypoint passed meanwhile is reached and the next one flown
+        to, still paused, as `ModeAuto::run` updates the mission throughout; the mock
+        once kept the item, and an approach's MISSION_SET_CURRENT sent the vehicle 16 m
+        back to it: fuzzed flight 7548), PX4 by slowing along the velocity."""
         self._paused = True
         if on_the_track:
             self._body.pause_track()
@@ -219,7 +222,9 @@ class MissionRunner:
         if self._manoeuvre is None:
             self._begin_item(now)
             return
-        if self._paused or not self._manoeuvre.update(self._body, now):
+        if self._paused and isinstance(self._manoeuvre, Stop):
+            return  # stopped out of its track (PX4): nothing reached meanwhile
+        if not self._manoeuvre.update(self._body, now):
             return
         self._finish_item(now)
 

@@ -106,6 +106,10 @@ FOUND_12 = {
     3983: "gap swap of 12 UAVs at 5 m/s with a restart: uav5 had stepped aside and come "
     "back, and its next waypoint (where it started) was placed on its path's first pass; "
     "found there and lost, it flew through where uav6 crept (0.11 m)",
+    7548: "(the mock's) crossing of 6 UAVs at 10 m/s: uav4's pause ran it 14 m past its "
+    "waypoint, which the mock did not count as reached while paused (ArduCopter does: "
+    "ModeAuto::run updates the mission throughout); the approach's MISSION_SET_CURRENT "
+    "then sent it back to that waypoint, across uav5's way (5.10 m)",
     6698: "crossing of 12 UAVs at 5 m/s with a restart: uav6's pause was lost four times "
     "running (20 % loss in) and it stopped 1.5 m past its limit, inside its encounter with "
     "uav4; nothing re-ordered around a vehicle found inside, and uav4 passed it 5.43 m "

@@ -142,6 +142,29 @@ def test_pause_holds_and_continue_resumes():
     assert local(sim)[0] > paused_at + 5.0
 
 
+def test_a_paused_arducopter_mission_that_runs_past_its_waypoint_goes_on_to_the_next():
+    """ArduCopter's pause runs the track's clock down while the mission is updated: a
+    waypoint the paused curve runs past is reached, and the next one is current, still
+    paused. (The mock kept the item; an approach's MISSION_SET_CURRENT then sent the
+    vehicle 16 m back to the waypoint: fuzzed flight 7548.)"""
+    sim, flight = make(mission=[takeoff(), at(60, 0), at(200, 4), land()])
+    airborne_in_guided(sim, flight)
+    flight.set_mode(FlightMode.AUTO, sim.sim_time)
+    while local(sim)[0] < 52.0:  # at speed, 8 m short of the waypoint
+        sim.advance(0.1)
+    assert sim.state(1).mission_seq == 2
+    assert flight.pause(sim.sim_time) == ACCEPTED
+    sim.advance(15.0)
+    stopped = local(sim)[0]
+    assert stopped > 61.0  # ran past it
+    assert sim.state(1).mission_seq == 3
+    sim.advance(2.0)
+    assert local(sim)[0] == pytest.approx(stopped, abs=0.05)  # still paused
+    assert flight.resume(sim.sim_time) == ACCEPTED
+    sim.advance(5.0)
+    assert local(sim)[0] > stopped + 2.0  # on to the next, not back
+
+
 def test_arducopter_pauses_a_mission_only_on_the_way_to_a_place():
     """As ArduCopter's ModeAuto::pause (WP submode, destination not reached): not in a
     reached waypoint's hold, yes on the way to the landing's place, not in the descent;
