@@ -130,7 +130,7 @@ class Gatekeeper:
                 return False
             if wait.limit(first.s) - p.s > self.rule.needed_m(p.speed, p.accel, self.limits[uav]):
                 return True
-            way = first.path.between(first.s, max(wait.after))
+            way = first.path.between(first.s, float(wait.after.max()))
             gap = np.hypot(*(way - np.asarray(p.path.position(p.s))).T).min()
             return p.speed < STOPPED_M_S and gap >= p.path.radius_m + first.path.radius_m
 

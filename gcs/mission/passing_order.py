@@ -158,6 +158,10 @@ class PlannedPath:
         less, both ends included: (n, 2)."""
         hi_m = max(lo_m, hi_m)
         s = np.linspace(lo_m, hi_m, max(2, int(np.ceil((hi_m - lo_m) / step_m)) + 1))
+        return self._points(s)
+
+    def _points(self, s: Floats) -> Floats:
+        """The points `s` metres along the path: (n, 2)."""
         along = self.s
         return np.column_stack(
             [np.interp(s, along, self.xy[:, 0]), np.interp(s, along, self.xy[:, 1])]
@@ -180,10 +184,7 @@ class PlannedPath:
         first, last = np.concatenate(t_in), np.concatenate(t_out)
         before = np.maximum(np.searchsorted(s, s - step_m, side="right") - 1, 0)
         after = np.minimum(np.searchsorted(s, s + step_m, side="left"), len(s) - 1)
-        xy = np.column_stack(
-            [np.interp(s, along, self.xy[:, 0]), np.interp(s, along, self.xy[:, 1])]
-        )
-        return s, xy, first[before], last[after]
+        return s, self._points(s), first[before], last[after]
 
 
 @dataclass(frozen=True)
