@@ -353,12 +353,13 @@ class FlightActions:
         In a mission (AUTO, or `in_mission`: just told to start one, which its HEARTBEAT
         may not show yet), `pause_mission`; otherwise the vehicle brakes to a hover
         (ArduCopter BRAKE, PX4 AUTO.LOITER). A vehicle disarmed on the ground is left
-        alone; one armed on the ground (about to take off) is disarmed, which autopilots
-        refuse in the air (a stale "on the ground" cannot drop a flying vehicle)."""
+        alone; one armed on the ground (about to take off), or sent an ARM it has not told
+        of yet, is disarmed, which autopilots refuse in the air (a stale "on the ground"
+        cannot drop a flying vehicle): one they refuse brakes."""
         state = self.link.state
         if state.down:
             return "on the ground, disarmed: nothing to hold"
-        if state.armed and not state.airborne:
+        if (state.armed or state.arm_unconfirmed) and not state.airborne:
             with contextlib.suppress(CommandFailedError, CommandDeniedError):
                 await self.disarm()
                 return "on the ground: disarmed"

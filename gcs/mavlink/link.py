@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any
 
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
 from gcs.mavlink.connection import GCS_COMPID, GCS_SYSID, MavConnection, Message
 from gcs.mavlink.errors import LinkLostError, VehicleRebootedError
 from gcs.mavlink.identity import VehicleIdentity
@@ -105,6 +107,8 @@ class VehicleLink:
 
     def send(self, msg: Message) -> None:
         self.last_sent = self._loop.time()
+        if _is_arm(msg):
+            self.state.arm_sent = self.last_sent
         self.connection.send(msg, self.sysid)
 
     def command_turn(self, command: int) -> asyncio.Lock:
@@ -269,3 +273,12 @@ def _addressed_to_us(msg: Message) -> bool:
     target = getattr(msg, "target_system", 0)
     component = getattr(msg, "target_component", 0)
     return target in (0, GCS_SYSID) and component in (0, GCS_COMPID)
+
+
+def _is_arm(msg: Message) -> bool:
+    """A COMMAND_LONG that arms (the vehicle's state then waits for news of it)."""
+    return (
+        getattr(msg, "command", None) == mavlink2.MAV_CMD_COMPONENT_ARM_DISARM
+        and msg.get_type() == "COMMAND_LONG"
+        and round(getattr(msg, "param1", 0)) == 1
+    )

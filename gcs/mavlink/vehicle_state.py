@@ -17,6 +17,9 @@ from gcs.mavlink.modes import mode_name
 
 MAV_STATE_BOOT: int = mavlink2.MAV_STATE_BOOT
 MAV_MODE_FLAG_SAFETY_ARMED = mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+ARM_NEWS_S = 1.0
+"""A HEARTBEAT heard sooner than this after an ARM was sent may have left the vehicle
+before the ARM arrived (latency, a retry's first copy lost): it does not say "disarmed"."""
 
 
 class LandedState(IntEnum):
@@ -73,6 +76,8 @@ class VehicleState:
     time_boot_ms: int = 0
     position_heard: float | None = None  # loop time of the last GLOBAL_POSITION_INT
     last_heard: float = 0.0  # loop time of the last message
+    heartbeat_heard: float | None = None  # loop time of the last HEARTBEAT
+    arm_sent: float | None = None  # loop time this ground station last sent it an ARM
     link_up: bool = False
     reboots: int = 0
     statustexts: deque[tuple[float, int, str]] = field(default_factory=lambda: deque(maxlen=20))
@@ -94,9 +99,19 @@ class VehicleState:
         return self.system_status == MAV_STATE_BOOT
 
     @property
+    def arm_unconfirmed(self) -> bool:
+        """An ARM was sent and no HEARTBEAT since says what came of it: the vehicle may
+        be armed, even taking off, while its last HEARTBEAT still says disarmed (fuzzed
+        flight 7773: a hold during the start took a climbing vehicle for on the ground)."""
+        if self.arm_sent is None:
+            return False
+        return self.heartbeat_heard is None or self.heartbeat_heard < self.arm_sent + ARM_NEWS_S
+
+    @property
     def down(self) -> bool:
-        """Disarmed on the ground, as far as the vehicle last said (and it said lately)."""
-        return self.link_up and not self.armed and not self.airborne
+        """Disarmed on the ground, as far as the vehicle last said (and it said lately,
+        since any ARM sent to it)."""
+        return self.link_up and not self.armed and not self.airborne and not self.arm_unconfirmed
 
     def recent_text(self, since: float) -> str:
         """The STATUSTEXTs heard since loop time `since`, joined (for error messages)."""
@@ -114,6 +129,7 @@ class VehicleState:
 
 
 def _heartbeat(s: VehicleState, m: Any, now: float) -> None:
+    s.heartbeat_heard = now
     s.vehicle_type = m.type
     s.custom_mode = m.custom_mode
     s.mode = mode_name(s.autopilot, m.custom_mode)

@@ -640,3 +640,38 @@ async def test_a_resent_take_off_refused_as_already_flying_is_a_take_off(climbs:
         assert len(peer.sent("COMMAND_LONG")) == 2
     finally:
         await link.close()
+
+
+@pytest.mark.virtual_clock
+async def test_a_hold_right_after_an_arm_disarms_though_the_last_heartbeat_says_disarmed() -> None:
+    """Fuzzed flight 7773: a hold during the start came 0.4 s after the vehicle's ARM was
+    acknowledged, before any HEARTBEAT said it was armed. Taken for on the ground, it was
+    left alone and climbed on in GUIDED. An ARM sent is news the vehicle has not told of
+    yet: the hold disarms it (refused in the air: it brakes), and only a HEARTBEAT heard
+    well after the ARM makes it "down" again."""
+    link, peer = await linked(silent)
+    peer.reply = lambda msg: (
+        [peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED)]
+        if msg.get_type() == "COMMAND_LONG"
+        else []
+    )
+    arm_disarm = mavlink2.MAV_CMD_COMPONENT_ARM_DISARM
+    try:
+        assert link.state.down
+        actions = FlightActions(link)
+        await actions.arm()
+        peer.heartbeat()  # disarmed: sent before the ARM arrived
+        await asyncio.sleep(0.1)
+        assert not link.state.down
+        assert await actions.hold() == "on the ground: disarmed"
+        assert [(m.command, m.param1) for m in peer.sent("COMMAND_LONG")] == [
+            (arm_disarm, 1),
+            (arm_disarm, 0),
+        ]
+        await asyncio.sleep(1.0)
+        peer.heartbeat()  # disarmed, and heard long enough after the ARM to say so
+        await asyncio.sleep(0.1)
+        assert link.state.down
+        assert await actions.hold() == "on the ground, disarmed: nothing to hold"
+    finally:
+        await link.close()
