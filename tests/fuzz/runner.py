@@ -275,7 +275,8 @@ class Flight:
         self.flight_id = made.json()["id"]
 
         async def online() -> bool:
-            return all([(await client.get(f"/vehicles/{v}")).json()["live"]["online"] for v in ids])
+            listed = (await client.get("/vehicles")).json()
+            return all(v["live"]["online"] for v in listed if v["id"] in ids)
 
         await until(online, 60, "every vehicle online")
         uploaded = await self._call("post", f"/flights/{self.flight_id}/upload")
