@@ -21,7 +21,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .scurve import DECEL_PHASE, PHASES, Profile, advance, leg_profile, stopping_distance
+from .scurve import (
+    DECEL_PHASE,
+    PHASES,
+    Profile,
+    advance,
+    brake_profile,
+    leg_profile,
+    stopping_distance,
+)
 
 VERTICAL_TOLERANCE = 0.3
 """m: close enough to a target altitude."""
@@ -50,9 +58,10 @@ class NavLimits:
     """How fast the acceleration ramps when a pause or a brake stops the vehicle (ArduCopter
     shapes a paused mission's speed, and BRAKE's, with its position controller's
     PSC_JERK_NE, not the legs' S-curve jerk)."""
-    brake_accel: float = 0.3
-    """How hard a brake (ArduCopter's BRAKE mode) stops, per m/s of speed (it asks more the
-    faster it goes); a pause stops at `accel`."""
+    brake_decel: float = 7.5
+    """The deceleration a brake (ArduCopter's BRAKE mode, BRAKE_MODE_DECEL_RATE_MSS) may
+    ask for; its speed decays with the time constant brake_decel / stop_jerk
+    (`scurve.brake_profile`). A pause stops at `accel`."""
 
 
 @dataclass(frozen=True)
@@ -79,7 +88,7 @@ class PointMassFleet:
         self.accel = np.full(n, 2.5)
         self.jerk = np.full(n, 1.0)
         self.stop_jerk = np.full(n, 5.0)
-        self.brake_accel = np.full(n, 0.3)
+        self.brake_decel = np.full(n, 7.5)
         self.clock = np.ones(n)
         """How fast each vehicle's legs run: 1 normally, down to 0 in a paused mission."""
         self.clock_rate = np.zeros(n)
@@ -265,21 +274,32 @@ class PointMassFleet:
         if leg is not None:
             self.legs.add(i, self.time, *leg)
 
-    def brake_to_rest(self, i: int, accel: float | None = None, jerk: float | None = None) -> None:
+    def brake_to_rest(self, i: int, accel: float | None = None, jerk: float | None = None) -> float:
         """Replace the legs flying with one slow-down along the velocity (at the legs'
-        acceleration and jerk unless told otherwise)."""
+        acceleration and jerk unless told otherwise); how far it goes."""
+        speed = float(_distance(self.vel[i, :2]))
+        accel = self.accel[i] if accel is None else accel
+        jerk = self.jerk[i] if jerk is None else jerk
+        return self._slow_down(
+            i, leg_profile(stopping_distance(speed, accel, jerk), speed, speed, accel, jerk)
+        )
+
+    def brake_mode(self, i: int) -> float:
+        """ArduCopter's BRAKE: the speed decays (`scurve.brake_profile`); how far it goes."""
+        speed = float(_distance(self.vel[i, :2]))
+        return self._slow_down(i, brake_profile(speed, self.brake_decel[i], self.stop_jerk[i]))
+
+    def _slow_down(self, i: int, profile: Profile) -> float:
         self.reset_clock(i)
         self.base[i] = self.pos[i, :2]
         self.legs.on[i] = False
         self.blending[i] = False
         velocity = self.vel[i, :2].copy()
         speed = float(_distance(velocity))
-        if speed > AT_TARGET_M:
-            accel = self.accel[i] if accel is None else accel
-            jerk = self.jerk[i] if jerk is None else jerk
-            stop = stopping_distance(speed, accel, jerk)
-            profile = leg_profile(stop, speed, speed, accel, jerk)
-            self.legs.add(i, self.time, velocity / speed, profile)
+        if speed <= AT_TARGET_M:
+            return 0.0
+        self.legs.add(i, self.time, velocity / speed, profile)
+        return profile.length
 
     def body(self, index: int) -> Body:
         return Body(self, index)
@@ -397,7 +417,7 @@ class Body:
     def apply_limits(self, limits: NavLimits) -> None:
         f, i = self._fleet, self.index
         f.cruise[i], f.accel[i], f.jerk[i] = limits.cruise_speed, limits.accel, limits.jerk
-        f.stop_jerk[i], f.brake_accel[i] = limits.stop_jerk, limits.brake_accel
+        f.stop_jerk[i], f.brake_decel[i] = limits.stop_jerk, limits.brake_decel
         f.climb[i], f.descent[i] = limits.climb_rate, limits.descent_rate
         f.vertical_accel[i] = limits.vertical_accel
 
@@ -496,10 +516,8 @@ class Body:
         BRAKE_MODE_DECEL_RATE_MSS)."""
         f, i = self._fleet, self.index
         speed = float(np.hypot(*f.vel[i, :2]))
-        accel = max(f.brake_accel[i] * speed, 0.1) if brake else f.accel[i]
-        f.brake_to_rest(i, accel, f.stop_jerk[i])
-        reach = stopping_distance(speed, accel, f.stop_jerk[i]) if speed > AT_TARGET_M else 0.0
         direction = f.vel[i, :2] / speed if speed > AT_TARGET_M else np.zeros(2)
+        reach = f.brake_mode(i) if brake else f.brake_to_rest(i, f.accel[i], f.stop_jerk[i])
         f.set_next_leg(i, None)
         f.target[i] = (*(f.pos[i, :2] + direction * reach), self.alt)
         f.radius[i] = 0.5

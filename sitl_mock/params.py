@@ -98,11 +98,9 @@ it, the earlier choice, gave 6.3 s and 9 s: stops twice too long). At 1 m/s the 
 matters more: 22.9 s there for 20 m, 22.0 s here (bench/results/kinematics_vs_sitl.txt)."""
 
 
-ARDUCOPTER_BRAKE_DECEL = 0.3
-"""ArduCopter's BRAKE mode asks a deceleration of 0.67 x the speed (its square-root
-shaper's linear part, below BRAKE_MODE_DECEL_RATE_MSS), ramped at PSC_JERK_NE: the speed
-decays with a 1.5 s time constant. As the mock's jerk-limited stop, 0.3 x the speed per
-second reaches as far: 9.1 m from 5 m/s and 19.7 m from 10 m/s (SITL: 8.7 m and 20.1 m)."""
+ARDUCOPTER_BRAKE_DECEL = 7.5
+"""BRAKE_MODE_DECEL_RATE_MSS, compiled into ArduCopter (BRAKE mode has no parameter):
+with PSC_JERK_NE (5) its speed decays with a 1.5 s time constant (`brake_profile`)."""
 
 
 def arducopter_limits(params: ParameterSet) -> NavLimits:
@@ -116,7 +114,7 @@ def arducopter_limits(params: ParameterSet) -> NavLimits:
         accept_radius=params.get("WP_RADIUS_M"),
         jerk=params.get("WP_JERK") * ARDUCOPTER_EFFECTIVE_JERK,
         stop_jerk=params.get("PSC_JERK_NE"),
-        brake_accel=ARDUCOPTER_BRAKE_DECEL,
+        brake_decel=ARDUCOPTER_BRAKE_DECEL,
     )
 
 
@@ -131,7 +129,7 @@ def px4_limits(params: ParameterSet) -> NavLimits:
         accept_radius=params.get("NAV_ACC_RAD"),
         jerk=params.get("MPC_JERK_AUTO"),
         stop_jerk=params.get("MPC_JERK_AUTO"),
-        brake_accel=params.get("MPC_ACC_HOR"),
+        brake_decel=params.get("MPC_ACC_HOR"),
     )
 
 
