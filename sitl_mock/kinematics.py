@@ -511,9 +511,8 @@ class Body:
 
     def stop(self, brake: bool = False) -> None:
         """Stop along the velocity and hover there: a paused mission slows at the legs'
-        acceleration, a brake at its own, both with the stopping jerk (ArduCopter:
-        AC_WPNav's pause shapes the track speed with PSC_JERK_NE; BRAKE mode stops at
-        BRAKE_MODE_DECEL_RATE_MSS)."""
+        acceleration with the stopping jerk (ArduCopter: AC_WPNav's pause shapes the track
+        speed with PSC_JERK_NE); a brake's speed decays (BRAKE mode, `brake_profile`)."""
         f, i = self._fleet, self.index
         speed = float(np.hypot(*f.vel[i, :2]))
         direction = f.vel[i, :2] / speed if speed > AT_TARGET_M else np.zeros(2)
