@@ -276,7 +276,7 @@ class Flight:
 
         async def online() -> bool:
             listed = (await client.get("/vehicles")).json()
-            return all(v["live"]["online"] for v in listed if v["id"] in ids)
+            return set(ids) <= {v["id"] for v in listed if v["live"]["online"]}
 
         await until(online, 60, "every vehicle online")
         uploaded = await self._call("post", f"/flights/{self.flight_id}/upload")
