@@ -117,6 +117,10 @@ FOUND_12 = {
     7773: "gap swap of 10 UAVs, 20 % loss in on uav7: a fleet pause during the start came "
     "0.4 s after uav7's ARM was acknowledged, before a HEARTBEAT said it was armed; taken "
     "for on the ground, it was left alone and climbed on in GUIDED",
+    9979: "crossing of 10 UAVs at 10 m/s, no operator: uav10, creeping at 0.5 m/s, passed "
+    "its mission's speed items (10 m/s) and sped up on its long leg to the landing place; "
+    "judged as on its approach, it was stopped too late and came 5.47 m from uav8 (found "
+    "once the fuzz runner polled less, at 19dd2a3; also at aa5753c with that runner)",
 }
 """Flights of up to 12 UAVs (`--max-uavs 12`), beyond the CI batch's 6."""
 

@@ -110,6 +110,18 @@ def test_the_stopping_rule_stops_in_time_goes_only_with_room_and_creeps_when_wai
     assert rule.decide(Gate.CREEP, 0.3, 0.5, 0.0, LIMITS, True) == Gate.STOP
 
 
+def test_a_creep_its_mission_sped_up_again_is_judged_on_the_legs_speed() -> None:
+    """Fuzzed flight 9979: creeping at 0.5 m/s, a vehicle passed its mission's
+    DO_CHANGE_SPEED items (the leg's 10 m/s), and on a long leg it sped up. Judged as still
+    on its 0.5 m/s approach, whose pause stops at once, it was stopped at 2.9 m/s 8.5 m
+    short and went on past its limit, to 5.5 m from the vehicle it waited for."""
+    rule = StoppingRule()
+    gap, speed, accel = 9.0, 2.42, 1.9  # a moment of that flight
+    assert rule.decide(Gate.CREEP, gap, speed, accel, LIMITS, False, 0.5) == Gate.STOP
+    on_its_approach = rule.decide(Gate.CREEP, gap, 0.5, 0.0, LIMITS, False, 0.5)
+    assert on_its_approach == Gate.CREEP
+
+
 @settings(max_examples=6, deadline=None)
 @given(
     st.tuples(st.sampled_from(["crossing", "random"]), st.integers(0, 5)),
