@@ -101,6 +101,8 @@ class _Vehicle:
     slowing_for: set[int] = field(default_factory=set)  # the vertices it slows for
     approach_m_s: float = 0.0  # how fast it approaches its limit (CREEP)
     starting_s: float = 0.0  # still to wait before an approach from a stop moves it
+    ceiling: float = math.inf  # the speed of the S-curve into the stop it slows for
+    stopping_from: dict[int, float] = field(default_factory=dict)  # stop vertex: speed then
 
     @classmethod
     def of(
@@ -117,9 +119,10 @@ class _Vehicle:
         """The speed the vehicle aims for here: its leg's (or its gate's), until it must
         slow down for one of the next two vertices, as an S-curve does: from the moment
         what is left is what slowing down from its speed and acceleration takes, it aims
-        for the vertex's speed (and lets go again if it stops short of it). The vertex
-        after next counts too: a vertex's speed assumes the vehicle gets there no longer
-        speeding up, which one that sets off just before it is not."""
+        for the vertex's speed (and lets go again if it stops short of it); into a stop,
+        no faster than the end of an S-curve from the speed it had there (`ceiling`). The
+        vertex after next counts too: a vertex's speed assumes the vehicle gets there no
+        longer speeding up, which one that sets off just before it is not."""
         if self.gate == Gate.STOP:
             return 0.0
         k = self._next_vertex()
@@ -129,6 +132,7 @@ class _Vehicle:
                 k = self._next_vertex()
             self.slowing_for.clear()  # (or stopped short of it: on again)
         self.slowing_for.intersection_update(range(k, len(self.vertex_s)))
+        self.stopping_from = {j: v for j, v in self.stopping_from.items() if j in self.slowing_for}
         leg = self.leg_speed[max(0, k - 1)] if len(self.leg_speed) else 0.0
         if self.gate == Gate.CREEP:
             leg = min(leg, self.approach_m_s)
@@ -139,7 +143,18 @@ class _Vehicle:
                 self.v, self.a, ahead
             ):
                 self.slowing_for.add(j)
-        return min([leg, *(self.vertex_speed[j] for j in self.slowing_for)])
+                if ahead == 0.0:
+                    self.stopping_from.setdefault(j, peak)
+        corners = [self.vertex_speed[j] for j in self.slowing_for if self.vertex_speed[j] > 0]
+        self.ceiling = min(
+            (
+                self.limits.speed_before_rest(self.vertex_s[j] - self.s, self.stopping_from[j])
+                for j in self.slowing_for
+                if self.vertex_speed[j] == 0.0
+            ),
+            default=math.inf,
+        )
+        return min([leg, self.ceiling, *corners])
 
     def _next_vertex(self) -> int:
         return min(bisect.bisect_right(self.vertex_s, self.s), len(self.vertex_s) - 1)
@@ -159,6 +174,9 @@ class _Vehicle:
         change = jerk * dt
         self.a += min(max(wanted - self.a, -change), change)
         self.v = max(0.0, self.v + self.a * dt)
+        if self.v > self.ceiling:  # into a stop: along the S-curve's end, not short of it
+            self.a -= (self.v - self.ceiling) / dt
+            self.v = self.ceiling
         if self.v == 0.0 and self.a < 0:
             self.a = 0.0
         self.s = min(self.path.length, self.s + self.v * dt)

@@ -99,6 +99,23 @@ class Report:
             lines.append(f"{event.get('at', 0.0):8.2f} {event['kind']:<18} {rest}")
         return "\n".join(lines)
 
+    def waypoint_errors(self) -> list[float]:
+        """Seconds each NAV item was reached after the timing said (before: negative),
+        from the synchronised start, but the landing's (reached at touch-down)."""
+        started = [e["at"] for e in self.events if e["kind"] == "MissionsStarted"]
+        reached = [e for e in self.events if e["kind"] == "ItemReached"]
+        if not started:
+            return []
+        by_uav: dict[str, list[dict[str, Any]]] = {}
+        for event in reached:
+            by_uav.setdefault(event["uav_id"], []).append(event)
+        return [
+            e["at"] - started[-1] - e["scheduled_s"]
+            for events in by_uav.values()
+            for e in events[:-1]
+            if e["at"] >= started[-1]
+        ]
+
     def summary(self) -> str:
         verdict = "OK" if not self.violations else f"{len(self.violations)} VIOLATIONS"
         lines = [
