@@ -76,7 +76,7 @@ SLOW_AT_10 = {
     "case-6": "at 10 m/s `mvo-gcs fly` flew case VI 1.16x its timed flight (35.9 s and "
     "36.0 s against 31.0 s, 2026-12-06, at 1e1a833 and after it alike; the service's "
     "flight 1.14x): uav1 and uav2 wait for each other 11 times and come in 5 s after "
-    "their timing, while the mock flies the same missions in 27.7 s",
+    "their timing, while the mock flies case VI at 10 m/s through the service in 27.7 s",
 }
 """Known shortfalls of the timing at 10 m/s on real SITL: separation and landings are
 still checked; the mission time then fails as expected (xfail) instead of passing."""
