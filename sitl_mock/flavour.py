@@ -78,6 +78,13 @@ class Flavour:
     when a DO_CHANGE_SPEED asked for less meanwhile (paused at 5 m/s, given 1 m/s,
     resumed: 4.9 m/s 2 s later, 1.0 m/s after 6 s; `bench/approach_vs_sitl.py`). PX4
     slows along its velocity and goes on at the speed asked."""
+    slows_a_speed_up_only_by_its_plateau: bool
+    """ArduCopter's S-curve cannot lower the speed of a leg that is speeding up except by
+    cutting short the part at constant acceleration (SCurve::set_speed_max): its jerk
+    ramps run on. A leg from rest at 10 m/s told 1 m/s (DO_CHANGE_SPEED) 0.1 s after it
+    began went on up to 6.5 m/s on SITL 4.8, the speed its ramps alone give (WP_ACC²/
+    WP_JERK); one with no such part, or past it, keeps its speed (`bench/approach_vs_sitl.py
+    --variant restart-then-speed`). PX4 follows the new speed."""
 
     def new_params(self, sysid: int) -> ParameterSet:
         params = ParameterSet(self.param_defaults, bytewise=self.params_bytewise)
@@ -115,6 +122,7 @@ ARDUPILOT = Flavour(
     pauses_only_on_the_way=True,
     forgets_speed_in_auto=True,
     pauses_on_the_track=True,
+    slows_a_speed_up_only_by_its_plateau=True,
 )
 
 PX4 = Flavour(
@@ -147,6 +155,7 @@ PX4 = Flavour(
     pauses_only_on_the_way=False,
     forgets_speed_in_auto=False,
     pauses_on_the_track=False,
+    slows_a_speed_up_only_by_its_plateau=False,
 )
 
 FLAVOURS = {flavour.name: flavour for flavour in (ARDUPILOT, PX4)}

@@ -337,7 +337,9 @@ class FlightController:
             return FAILED
         self._cruise_override = speed
         self.apply_limits()
-        self.body.set_cruise(self.limits().cruise_speed)
+        self.body.set_cruise(
+            self.limits().cruise_speed, self.flavour.slows_a_speed_up_only_by_its_plateau
+        )
         return ACCEPTED
 
     # -- time -------------------------------------------------------------------------------

@@ -425,23 +425,51 @@ class Body:
     def cruise(self) -> float:
         return float(self._fleet.cruise[self.index])
 
-    def set_cruise(self, speed: float, quick: bool = False) -> None:
-        """A new speed for the leg being flown (a leg already slowing down finishes) and
-        the one planned after it; `quick`: changed at the stopping jerk, as a resumed
-        pause's track speed is."""
+    def set_cruise(self, speed: float, plateau_only: bool = False) -> None:
+        """A new speed for the leg being flown and the one planned after it. A leg slowing
+        down to its end already finishes as it is; with `plateau_only` (ArduCopter), one
+        speeding up slows no more than by ending its constant acceleration now
+        (`Flavour.slows_a_speed_up_only_by_its_plateau`)."""
         f, i = self._fleet, self.index
         f.cruise[i] = speed
         legs, k = f.legs, int(f.legs.newest()[i])
-        if legs.on[i, k] and legs.elapsed(f.time)[i, k] < legs.knots[i, k, DECEL_PHASE]:
-            offset, leg_speed, _, _ = legs.evaluate(f.time)
-            remaining = legs.length[i, k] - offset[i, k]
-            limits = (speed, f.accel[i], f.jerk[i])
-            up = f.stop_jerk[i] if quick else None
-            profile = leg_profile(remaining, leg_speed[i, k], *limits, up)
-            legs.add(i, f.time, legs.direction[i, k].copy(), profile, k, offset[i, k])
+        elapsed = float(legs.elapsed(f.time)[i, k])
+        if legs.on[i, k] and elapsed < legs.knots[i, k, DECEL_PHASE]:
+            profile = legs.profile(i, k)
+            peak = float(profile.states[3, 1])
+            speeding_up = 0.0 < elapsed < profile.knots[3] and peak > profile.states[0, 1]
+            if plateau_only and speeding_up and speed < peak:
+                self._cut_plateau(k, profile, elapsed, speed)
+            else:
+                offset, leg_speed, _, _ = legs.evaluate(f.time)
+                remaining = legs.length[i, k] - offset[i, k]
+                profile = leg_profile(remaining, leg_speed[i, k], speed, f.accel[i], f.jerk[i])
+                legs.add(i, f.time, legs.direction[i, k].copy(), profile, k, offset[i, k])
         following = f.next_leg[i]
         if following is not None and not f.blending[i]:
             self._plan_next(following.to)
+
+    def _cut_plateau(self, k: int, profile: Profile, elapsed: float, speed: float) -> None:
+        """Leg k, speeding up, told to go no faster than `speed`: its constant acceleration
+        (phase 1) ends no sooner than now and its jerk ramps run on, so it peaks at
+        `speed` or at what those ramps give; with no constant acceleration left it keeps
+        its peak."""
+        f, i = self._fleet, self.index
+        begins, ends = float(profile.knots[1]), float(profile.knots[2])
+        if elapsed >= ends or ends <= begins:
+            return
+        lowest = profile.states[3, 1] - profile.states[1, 2] * (ends - max(elapsed, begins))
+        replanned = leg_profile(
+            profile.length,
+            float(profile.states[0, 1]),
+            max(speed, float(lowest)),
+            f.accel[i],
+            f.jerk[i],
+            float(profile.jerks[0]),
+        )
+        legs = f.legs
+        start, offset = float(legs.start[i, k]), float(legs.start_offset[i, k])
+        legs.add(i, start, legs.direction[i, k].copy(), replanned, k, offset)
 
     def set_descent(self, rate: float) -> None:
         self._fleet.descent[self.index] = rate
