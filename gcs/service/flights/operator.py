@@ -89,6 +89,7 @@ class OperatorCommands:
                     "so there is nothing to abort (command one with /vehicles/{id}/land)"
                 )
             self.operator_took(flight_id)
+            self._owed.pop(flight_id, None)  # an earlier abort's owed: this one overrides it
             preempting = asyncio.ensure_future(slot.preempt())
             active = self.book.active.get(flight_id)
             if active is not None and active.fleet.crew.members:
@@ -332,9 +333,17 @@ class OperatorCommands:
         self._unfollowed_until.pop(flight_id, None)
 
     async def _pay_what_is_owed(self, flight_id: str) -> None:
-        """The abort to the vehicles it has not reached yet, now that they can be."""
-        fallback, missed = self._owed.get(flight_id, (Fallback.LAND, set()))
+        """The abort to the vehicles it has not reached yet, now that they can be; given
+        up as soon as another abort takes over (fuzzed flight 10380, flown with a change
+        to the passing order's approach that was not kept: an RTL owed to uav4, offline
+        after a restart, went out behind the operator's later LAND)."""
+        owed = self._owed.get(flight_id)
+        if owed is None:
+            return
+        fallback, missed = owed
         for vehicle_id in sorted(missed):
+            if self._owed.get(flight_id) is not owed:
+                return
             link = self.registry.link_or_none(vehicle_id)
             if link is None:
                 continue  # not back yet
