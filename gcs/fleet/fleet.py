@@ -241,6 +241,7 @@ class Fleet:
 
         crew = self.crew
         self._stop_for_replan(missions)
+        await self._keep_held_for_replan(missions)
         crew.gatekeeper.expect(
             checked.order,
             {
@@ -326,10 +327,24 @@ class Fleet:
             crew.gatekeeper.stop(uav)
             crew.commander.brake(uav)
 
-    def _stops_for_replan(self, uav_id: str) -> bool:
-        """Not one the operator holds, nor one coming down (ArduCopter will not stop it)."""
+    async def _keep_held_for_replan(self, uav_ids: Iterable[str]) -> None:
+        """The vehicles the operator holds that are about to get new missions brake out of
+        AUTO (the operator's continue sends them on in AUTO again): paused, the new
+        mission and its start made current would send them on, and nothing would stop
+        them (fuzzed flight 11679: uav3, held, flew its new mission during the hold, out
+        of the order, and came within 0.59 m of uav4 after the continue)."""
+        crew = self.crew
+        held = [uav for uav in uav_ids if uav in crew.held and not self._landing(uav)]
+        await crew.each(lambda m: m.actions.brake_in_mission(), "hold", held)
+
+    def _landing(self, uav_id: str) -> bool:
         member = self.crew.members[uav_id]
-        return uav_id not in self.crew.held and not member.tracker.landing(member.link.state)
+        return member.tracker.landing(member.link.state)
+
+    def _stops_for_replan(self, uav_id: str) -> bool:
+        """Not one the operator holds (`_keep_held_for_replan`), nor one coming down
+        (ArduCopter will not stop it)."""
+        return uav_id not in self.crew.held and not self._landing(uav_id)
 
     def _gate_again(self, uav_id: str) -> None:
         """A new mission, or its start made current, gives up a pause (ArduCopter SITL

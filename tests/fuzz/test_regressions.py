@@ -121,6 +121,9 @@ FOUND_12 = {
     "its mission's speed items (10 m/s) and sped up on its long leg to the landing place; "
     "judged as on its approach, it was stopped too late and came 5.47 m from uav8 (found "
     "once the fuzz runner polled less, at 19dd2a3; also at aa5753c with that runner)",
+    11679: "4 UAVs at 5 m/s: the operator held the fleet and reported an object; uav3, "
+    "held, got its new mission, whose upload and start gave up its pause, and flew it "
+    "during the hold, out of the order; after the continue it came within 0.59 m of uav4",
 }
 """Flights of up to 12 UAVs (`--max-uavs 12`), beyond the CI batch's 6."""
 
