@@ -537,16 +537,18 @@ class Body:
         self._fleet.reset_clock(self.index)
         self.go_to(east, north, self.alt if alt is None else alt, radius=0.5)
 
-    def stop(self, brake: bool = False) -> None:
-        """Stop along the velocity and hover there: a paused mission slows at the legs'
-        acceleration with the stopping jerk (ArduCopter: AC_WPNav's pause shapes the track
-        speed with PSC_JERK_NE); a brake's speed decays (BRAKE mode, `brake_profile`)."""
+    def stop(self, brake: bool = False, alt: float | None = None) -> None:
+        """Stop along the velocity and hover there (at `alt`, default the current
+        altitude): a paused mission, or LAND, slows at the legs' acceleration with the
+        stopping jerk (ArduCopter: AC_WPNav's pause shapes the track speed with
+        PSC_JERK_NE, LAND its velocity); a brake's speed decays (BRAKE mode,
+        `brake_profile`)."""
         f, i = self._fleet, self.index
         speed = float(np.hypot(*f.vel[i, :2]))
         direction = f.vel[i, :2] / speed if speed > AT_TARGET_M else np.zeros(2)
         reach = f.brake_mode(i) if brake else f.brake_to_rest(i, f.accel[i], f.stop_jerk[i])
         f.set_next_leg(i, None)
-        f.target[i] = (*(f.pos[i, :2] + direction * reach), self.alt)
+        f.target[i] = (*(f.pos[i, :2] + direction * reach), self.alt if alt is None else alt)
         f.radius[i] = 0.5
         f.reached[i] = False
 

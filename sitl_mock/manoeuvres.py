@@ -120,7 +120,7 @@ class Land:
 
     def start(self, body: Body, now: float) -> None:
         body.set_descent(self.limits.descent_rate)
-        body.hold(alt=-1.0)  # aim below the ground so the descent does not flare
+        body.stop(alt=-1.0)  # aim below the ground so the descent does not flare
 
     def update(self, body: Body, now: float) -> bool:
         if body.alt < LAND_SLOW_BELOW_M:

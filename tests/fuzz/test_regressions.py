@@ -58,6 +58,9 @@ FOUND = {
     "encounter with uav1, which stood there too (waiting for uav3), 6.36 m off; it could "
     "not stop short any more, so nobody took the lead, and uav1 went by 5.65 m from uav2. "
     "A vehicle standing still can wait where it stands if the other's way keeps 2R from it",
+    11531: "(the mock's) abort with LAND at 10 m/s: the mock's LAND stopped with WP_JERK, "
+    "40 % further on than ArduCopter's (PSC_JERK_NE), and uav4 came down 5.82 m from "
+    "uav2, which waited for it to pass",
 }
 
 
@@ -124,6 +127,9 @@ FOUND_12 = {
     11679: "4 UAVs at 5 m/s: the operator held the fleet and reported an object; uav3, "
     "held, got its new mission, whose upload and start gave up its pause, and flew it "
     "during the hold, out of the order; after the continue it came within 0.59 m of uav4",
+    11767: "(the mock's) 8 UAVs at 5 m/s: uav7, landed by the operator at 3.4 m/s 3 m "
+    "short of its goal, came down 2.9 m past it with the mock's over-long LAND stop, "
+    "toward uav8, which the order let come to 2R and its margin of that goal: 5.63 m",
 }
 """Flights of up to 12 UAVs (`--max-uavs 12`), beyond the CI batch's 6."""
 
