@@ -34,9 +34,9 @@ from gcs.mavlink.modes import custom_mode, mode_name, px4_main_sub
 
 MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = mavlink2.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
 DEFINITIVE_HINTS = ("not armable", "safety switch")
+"""Arming refusals that waiting does not cure (the mode, a switch only a person can press)."""
 LIFTING_MM = 300  # above home: a take-off under way
 LIFT_OFF_SEEN_S = 3.0  # how long a re-sent take-off's refusal waits to see the climb
-"""Arming refusals that waiting does not cure (the mode, a switch only a person can press)."""
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,10 @@ _EFFECTS = {
 mode, or "stopped" (told to hold where it is, or down); unless a later command to it came
 first."""
 ANSWER_WITHIN_S = 1.0
+_LANDINGS = {"abort-land", "land"}
+LANDING_WITHIN_S = 15.0
+"""A vehicle told to land is coming down (LAND) or down by then: one flying its mission
+stops on its track first (from 10 m/s, about 4 s)."""
 HELD_DRIFT_M = 2.0
 """How far a vehicle held by the operator may move once it stands (it hovers in place)."""
 STANDING_M_S = 0.1
@@ -69,9 +73,9 @@ GOAL_RADIUS_M = 2.0  # ArduCopter's WP_RADIUS_M: a mission's goal is reached wit
 WATCH_EVERY_S = 0.1
 END_WITHIN_S = 900.0
 REABORT_S = 300.0
+"""An abort that has not brought everyone down by then (held after it, say) is given again."""
 RESUME_AFTER_S = 30.0
 """How long the operator waits for every vehicle to be online again before a resume."""
-"""An abort that has not brought everyone down by then (held after it, say) is given again."""
 FINAL = {"landed", "ended", "aborted"}
 PLAN_REQUEST = {"time_budget_s": None, "iterations": 60, "population": 20, "wait_s": 60}
 """Iterations only: the same plan for the same scenario whatever the machine's load."""
@@ -192,6 +196,7 @@ class _Due:
     sysid: int
     expected: frozenset[str]
     at: float
+    within_s: float = ANSWER_WITHIN_S
 
 
 class Flight:
@@ -371,6 +376,9 @@ class Flight:
         if expected is not None:
             due = self._sent_at + ANSWER_WITHIN_S
             self.due += [_Due(action, sysid, expected, due) for sysid in reached]
+        if action.kind in _LANDINGS:
+            down, due = frozenset({"LAND", "down"}), self._sent_at + LANDING_WITHIN_S
+            self.due += [_Due(action, sysid, down, due, LANDING_WITHIN_S) for sysid in reached]
 
     def _supersede(self, action: Action) -> None:
         """A new command to a vehicle replaces what the last one was to do there."""
@@ -387,15 +395,19 @@ class Flight:
         waiting = []
         for due in self.due:
             state = self.sim.state(due.sysid)
-            stopped = state.holding or not state.armed or state.alt < 0.5
-            if state.mode in due.expected or (stopped and "stopped" in due.expected):
+            down = not state.armed or state.alt < 0.5
+            if (
+                state.mode in due.expected
+                or (down and "down" in due.expected)
+                or ((state.holding or down) and "stopped" in due.expected)
+            ):
                 if due.action.kind in ("pause", "hold") and state.armed:
                     self.stopped_by[due.sysid] = due.action
                 continue
             if now >= due.at:
                 self.report.violations.append(
                     f"{due.action.describe()}: uav{due.sysid} still in {state.mode} "
-                    f"{ANSWER_WITHIN_S:g} s after"
+                    f"{due.within_s:g} s after"
                 )
             else:
                 waiting.append(due)

@@ -354,10 +354,10 @@ def test_the_operator_pauses_continues_and_lands_real_arducopter(tmp_path: Path)
         assert client.post(f"/vehicles/{vehicle}/continue").json()["ok"]
         wait_for(lambda: observer.latest()[k].alt < still.alt - 1.0, 120, f"{uav} landing")
 
-        aborted = client.post(f"/flights/{flight}/abort", json={"mode": "land"})
-        assert aborted.status_code == 200, aborted.text
         at_abort = observer.latest()
         allowed = [ABORT_DRIFT_M + ABORT_DRIFT_S * v for v in observer.speeds()]
+        aborted = client.post(f"/flights/{flight}/abort", json={"mode": "land"})
+        assert aborted.status_code == 200, aborted.text
         state = final_state(client, flight, 600)
         down = observer.latest()
         armed = [track.armed for track in observer.tracks.values()]
