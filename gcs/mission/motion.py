@@ -401,10 +401,15 @@ class StoppingRule:
     ) -> float:
         """Room to stop short from `speed` and `accel` on a track flown at `track_m_s`
         (default the vehicle's cruise): the speed still grows while the command is on its
-        way."""
+        way, and one below its track's speed may begin to speed up meanwhile."""
         buffer = self.creep_buffer_m if creeping else self.buffer_m
-        rising = min(max(accel, 0.0), limits.accel_m_s2)
         track = limits.speed_m_s if track_m_s is None else track_m_s
+        if speed < track - self.approach_slack_m_s and accel > -SPEEDING_UP_M_S2:
+            # Below its track's speed and not slowing, it may be setting off (out of a
+            # corner, where it flew steady: fuzzed flight 11574 was let go there at
+            # 2.66 m/s, sped up on its next leg, and its pause ran 14 m, past its limit).
+            accel = max(accel, limits.jerk_m_s3 * self.reaction_s)
+        rising = min(max(accel, 0.0), limits.accel_m_s2)
         reacted = min(speed + rising * self.reaction_s, max(speed, track))
         stopping = limits.stopping_distance(reacted, accel, creeping, track)
         return stopping + speed * self.reaction_s + buffer

@@ -75,7 +75,9 @@ SLOW_AT_10 = {
     "its timing, at 5 m/s too (there the mock flies the same plan in 80.7 s, SITL in 86.7 s)",
     "case-6": "at 10 m/s `mvo-gcs fly` flew case VI 1.16x its timed flight (35.9 s and "
     "36.0 s against 31.0 s, 2026-12-06, at 1e1a833 and after it alike; the service's "
-    "flight 1.14x): uav1 and uav2 wait for each other 11 times and come in 5 s after "
+    "flight 1.14x, and 1.19x (36.9 / 31.1 s, 36.4 s by `mvo-gcs fly`) once a vehicle "
+    "flying steady below its track's speed was taken as setting off, as fuzzed flight "
+    "11574 needed): uav1 and uav2 wait for each other 11 times and come in 5 s after "
     "their timing; the mock flies the same plan in 30.5 s, SITL in 36.9 s in the same run "
     "(bench/flight_speed.py --scenarios case-6 --speeds 10)",
 }
@@ -315,7 +317,9 @@ def test_the_service_flies_real_arducopter(tmp_path: Path, name: str, speed: flo
         f"{sum(e['kind'] == 'Waiting' for e in events)} waits; "
         f"landings {_rounded(result.landed_m)}; arrivals {_rounded(result.arrival_s)}"
     )
-    check_flown(result, scenario, timed.duration_s, LAND_DRIFT_M, str(ended))
+    check_flown(
+        result, scenario, timed.duration_s, LAND_DRIFT_M, str(ended), slow_at_10=speed == 10.0
+    )
 
 
 def test_the_operator_pauses_continues_and_lands_real_arducopter(tmp_path: Path) -> None:

@@ -165,6 +165,20 @@ def test_a_creep_its_mission_sped_up_again_is_judged_on_the_legs_speed() -> None
     assert on_its_approach == Gate.CREEP
 
 
+def test_a_vehicle_flying_steady_below_its_tracks_speed_is_judged_as_setting_off() -> None:
+    """Fuzzed flight 11574: out of a corner at a steady 2.66 m/s on a 10 m/s track, a
+    vehicle was let go 11.1 m short of its limit (room enough at that speed held), sped up
+    on its next leg, was stopped 8.8 m short at 3.45 m/s, and its pause ran 10.9 m on:
+    5.65 m from the vehicle it was to wait for. ArduCopter, paused while speeding up on a
+    10 m/s track, ran 10.3 m from 2.05 m/s and 15.2 m from 4.05 m/s."""
+    rule = StoppingRule()
+    assert rule.decide(Gate.GO, 11.1, 2.66, 0.0, LIMITS, False) == Gate.STOP
+    assert rule.needed_m(2.66, 0.0, LIMITS) > 12.0  # SITL's pause from there, and more
+    # At its track's speed, or slowing down (for a corner ahead), it is not.
+    assert rule.needed_m(2.66, 0.0, LIMITS, track_m_s=2.66) < 10.0
+    assert rule.needed_m(2.66, -1.0, LIMITS) < 10.0
+
+
 @settings(max_examples=6, deadline=None)
 @given(
     st.tuples(st.sampled_from(["crossing", "random"]), st.integers(0, 5)),
