@@ -58,6 +58,10 @@ FOUND = {
     "encounter with uav1, which stood there too (waiting for uav3), 6.36 m off; it could "
     "not stop short any more, so nobody took the lead, and uav1 went by 5.65 m from uav2. "
     "A vehicle standing still can wait where it stands if the other's way keeps 2R from it",
+    11574: "crossing of 6 UAVs at 10 m/s, 20 % loss out on uav6: out of a corner at a "
+    "steady 2.66 m/s, uav6 was let go 11.1 m short of its limit, sped up on its next leg, "
+    "and its pause ran past the limit to 5.65 m from uav2: a vehicle below its track's "
+    "speed now counts as setting off",
     11531: "(the mock's) abort with LAND at 10 m/s: the mock's LAND stopped with WP_JERK, "
     "40 % further on than ArduCopter's (PSC_JERK_NE), and uav4 came down 5.82 m from "
     "uav2, which waited for it to pass",
