@@ -353,7 +353,8 @@ class StoppingRule:
         if gap_m > self.go_room_m(limits):
             return Gate.GO
         if gate == Gate.GO:
-            return Gate.STOP if gap_m <= self.needed_m(speed, accel, limits) else Gate.GO
+            needed = self.needed_m(speed, self._setting_off(speed, accel, limits), limits)
+            return Gate.STOP if gap_m <= needed else Gate.GO
         if gate == Gate.CREEP:
             sent = approach_m_s or speed
             # Faster than its approach, a speed item of its mission took over: the leg's
@@ -364,6 +365,16 @@ class StoppingRule:
             return Gate.STOP if gap_m <= needed else gate
         approach = self.approach_speed(gap_m, limits, waited_on)
         return Gate.CREEP if speed <= self.creep_m_s and approach is not None else Gate.STOP
+
+    def _setting_off(self, speed: float, accel: float, limits: CopterLimits) -> float:
+        """The acceleration to judge a vehicle flying its mission by: one flying steady
+        below its cruise speed (out of a corner, or hovering at a waypoint) may set off at
+        any moment, its acceleration building at WP_JERK while a command is on its way
+        (fuzzed flight 11574: let go out of a corner at a steady 2.66 m/s, it sped up on
+        its next leg, and its pause ran past its limit to 5.65 m from another)."""
+        if speed < limits.speed_m_s - self.approach_slack_m_s and accel > -SPEEDING_UP_M_S2:
+            return max(accel, limits.jerk_m_s3 * self.reaction_s)
+        return accel
 
     def approach_speed(self, gap_m: float, limits: CopterLimits, waited_on: bool) -> float | None:
         """How fast a stopped vehicle approaches a point `gap_m` ahead: the fastest speed
@@ -401,14 +412,9 @@ class StoppingRule:
     ) -> float:
         """Room to stop short from `speed` and `accel` on a track flown at `track_m_s`
         (default the vehicle's cruise): the speed still grows while the command is on its
-        way, and one below its track's speed may begin to speed up meanwhile."""
+        way."""
         buffer = self.creep_buffer_m if creeping else self.buffer_m
         track = limits.speed_m_s if track_m_s is None else track_m_s
-        if speed < track - self.approach_slack_m_s and accel > -SPEEDING_UP_M_S2:
-            # Below its track's speed and not slowing, it may be setting off (out of a
-            # corner, where it flew steady: fuzzed flight 11574 was let go there at
-            # 2.66 m/s, sped up on its next leg, and its pause ran 14 m, past its limit).
-            accel = max(accel, limits.jerk_m_s3 * self.reaction_s)
         rising = min(max(accel, 0.0), limits.accel_m_s2)
         reacted = min(speed + rising * self.reaction_s, max(speed, track))
         stopping = limits.stopping_distance(reacted, accel, creeping, track)

@@ -173,10 +173,12 @@ def test_a_vehicle_flying_steady_below_its_tracks_speed_is_judged_as_setting_off
     10 m/s track, ran 10.3 m from 2.05 m/s and 15.2 m from 4.05 m/s."""
     rule = StoppingRule()
     assert rule.decide(Gate.GO, 11.1, 2.66, 0.0, LIMITS, False) == Gate.STOP
-    assert rule.needed_m(2.66, 0.0, LIMITS) > 12.0  # SITL's pause from there, and more
-    # At its track's speed, or slowing down (for a corner ahead), it is not.
-    assert rule.needed_m(2.66, 0.0, LIMITS, track_m_s=2.66) < 10.0
-    assert rule.needed_m(2.66, -1.0, LIMITS) < 10.0
+    assert rule.decide(Gate.GO, 12.0, 2.66, 0.0, LIMITS, False) == Gate.STOP  # SITL ran 11.8
+    # At its cruise speed, or slowing down (for a corner ahead), it is not.
+    assert rule.decide(Gate.GO, 11.1, 2.66, 0.0, CopterLimits(speed_m_s=2.66), False) == Gate.GO
+    assert rule.decide(Gate.GO, 11.1, 2.66, -1.0, LIMITS, False) == Gate.GO
+    # Nor is an approach sent on from a stop: it speeds up to its own speed only.
+    assert rule.decide(Gate.CREEP, 11.1, 0.0, 0.0, LIMITS, False, 2.0) == Gate.CREEP
 
 
 @settings(max_examples=6, deadline=None)
