@@ -23,7 +23,7 @@ import numpy as np
 
 from gcs.mavlink.mission_item import Autopilot, Command, Mission
 from gcs.mission.build import DEFAULT_ALTITUDE_M, Finish, Visit, build_missions, takeoff_index
-from gcs.mission.flight_timing import TimedPath, fly
+from gcs.mission.flight_timing import FlightStuck, TimedPath, fly
 from gcs.mission.geodesy import Floats, GridFrame
 from gcs.mission.landing_clearance import clear_landings
 from gcs.mission.motion import (
@@ -286,9 +286,14 @@ def _with_landings_cleared(flight: FlightPlan, margin_m: float) -> FlightPlan:
     timed: list[FlightPlan] = []  # each one scored, its timing kept (a whole simulation)
 
     def score(paths: dict[str, PlannedPath], order: PassingOrder) -> tuple[float, float]:
+        """A candidate whose order cannot be kept to the end scores worst (a hold may
+        still free it: fuzzed flight 13783 was refused with a 500 instead)."""
         candidate = dataclasses.replace(flight, paths=paths, leg_speeds=_legs(paths), order=order)
         timed.append(candidate)
-        arrivals = [t.arrival_s for t in candidate.timed.values()]
+        try:
+            arrivals = [t.arrival_s for t in candidate.timed.values()]
+        except FlightStuck:
+            return math.inf, math.inf
         return max(arrivals, default=0.0), sum(arrivals)
 
     paths, _ = clear_landings(flight.paths, flight.order, derive, score)

@@ -62,6 +62,9 @@ FOUND = {
     "steady 2.66 m/s, uav6 was let go 11.1 m short of its limit, sped up on its next leg, "
     "and its pause ran past the limit to 5.65 m from uav2: a vehicle below its track's "
     "speed now counts as setting off",
+    13783: "random 6 UAVs at 10 m/s: the flight's timing found the plan's order stuck "
+    "(uav1 and uav3 stopped moving) while it tried landers held short, and the upload "
+    "answered 500; a stuck candidate now scores worst, and a hold freed this one",
     11531: "(the mock's) abort with LAND at 10 m/s: the mock's LAND stopped with WP_JERK, "
     "40 % further on than ArduCopter's (PSC_JERK_NE), and uav4 came down 5.82 m from "
     "uav2, which waited for it to pass",
