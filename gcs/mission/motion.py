@@ -414,8 +414,8 @@ class StoppingRule:
         (default the vehicle's cruise): the speed still grows while the command is on its
         way."""
         buffer = self.creep_buffer_m if creeping else self.buffer_m
-        track = limits.speed_m_s if track_m_s is None else track_m_s
         rising = min(max(accel, 0.0), limits.accel_m_s2)
+        track = limits.speed_m_s if track_m_s is None else track_m_s
         reacted = min(speed + rising * self.reaction_s, max(speed, track))
         stopping = limits.stopping_distance(reacted, accel, creeping, track)
         return stopping + speed * self.reaction_s + buffer
