@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pymap3d
+import pytest
 
 from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.link import VehicleLink
@@ -80,3 +81,10 @@ async def land_mid_leg(
         await link.wait_for("GLOBAL_POSITION_INT", None, bound_s)
         aside = max(aside, abs(float(here()[1])))
     return Landing(speed, float(np.hypot(*(here() - told))), aside)
+
+
+def assert_came_down_as_arducopter(landed: Landing) -> None:
+    """Landed from cruise, it came down straight on, CAME_DOWN_M on (within a tenth)."""
+    assert landed.speed_m_s == pytest.approx(SPEED_M_S, abs=0.3), landed
+    assert landed.came_down_m == pytest.approx(CAME_DOWN_M, rel=0.1), landed
+    assert landed.aside_m < 0.5, landed

@@ -59,8 +59,8 @@ first."""
 ANSWER_WITHIN_S = 1.0
 _LANDINGS = {"abort-land", "land"}
 LANDING_WITHIN_S = 15.0
-"""A vehicle told to land is coming down (LAND) or down by then: one flying its mission
-stops on its track first (from 10 m/s, about 4 s)."""
+"""A vehicle told to land is coming down (LAND) or down by then, whatever else the 1 s
+check took for its effect ("stopped": holding where it is is not landing)."""
 HELD_DRIFT_M = 2.0
 """How far a vehicle held by the operator may move once it stands (it hovers in place)."""
 STANDING_M_S = 0.1

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from gcs.mavlink.actions import FlightActions
-from tests.landing_at_speed import CAME_DOWN_M, SPEED_M_S, land_mid_leg
+from tests.landing_at_speed import assert_came_down_as_arducopter, land_mid_leg
 
 from .conftest import CMAC, vehicle
 
@@ -19,6 +19,4 @@ async def test_landed_at_cruise_speed_the_mock_comes_down_where_arducopter_does(
     sim = await simulator([vehicle(1)])
     link = await links(sim, 1)
     landed = await land_mid_leg(link, FlightActions(link), CMAC, bound_s=120.0)
-    assert landed.speed_m_s == pytest.approx(SPEED_M_S, abs=0.3)
-    assert landed.came_down_m == pytest.approx(CAME_DOWN_M, rel=0.1), landed
-    assert landed.aside_m < 0.5, landed
+    assert_came_down_as_arducopter(landed)

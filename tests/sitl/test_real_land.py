@@ -11,7 +11,7 @@ from gcs.mavlink import client
 from gcs.mavlink.actions import FlightActions, ReadinessPolicy
 from gcs.mavlink.commands import CommandPolicy
 from gcs.mavlink.link import LinkSettings
-from tests.landing_at_speed import CAME_DOWN_M, SPEED_M_S, land_mid_leg
+from tests.landing_at_speed import assert_came_down_as_arducopter, land_mid_leg
 from tests.sitl.ardupilot_sitl import instances
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow, pytest.mark.timeout(900)]
@@ -34,6 +34,4 @@ async def test_real_arducopter_landed_at_cruise_speed_comes_down_where_the_mock_
         finally:
             await link.close()
     print(f"\nLAND from cruise on real ArduCopter: {landed}")
-    assert landed.speed_m_s == pytest.approx(SPEED_M_S, abs=0.3)
-    assert landed.came_down_m == pytest.approx(CAME_DOWN_M, rel=0.1), landed
-    assert landed.aside_m < 0.5, landed
+    assert_came_down_as_arducopter(landed)
