@@ -112,8 +112,8 @@ class _Vehicle:
         s = path.s
         turns = turn_angles(path.xy) if len(s) > 2 else np.zeros(0)
         at_rest = np.abs(s[:, None] - np.asarray(stops)[None, :]).min(axis=1, initial=np.inf)
-        knots, bound = speed_profile(s, leg_speed, turns, limits, at_rest < STOP_MATCH_M)
-        return cls(path, limits, knots.tolist(), bound.tolist(), np.asarray(leg_speed).tolist())
+        knots, bound, legs = speed_profile(s, leg_speed, turns, limits, at_rest < STOP_MATCH_M)
+        return cls(path, limits, knots.tolist(), bound.tolist(), legs.tolist())
 
     def cap(self, rule: StoppingRule) -> float:
         """The speed the vehicle aims for here: its leg's (or its gate's), until it must
