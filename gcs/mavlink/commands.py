@@ -17,7 +17,7 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.mavlink.errors import CommandTimeoutError, GcsError, WaitTimeoutError, command_error
-from gcs.mavlink.link import VehicleLink
+from gcs.mavlink.link import CommandTurn, VehicleLink
 from gcs.mavlink.subscription import Subscription
 
 STATUSTEXT_GRACE_S = 0.15  # a failure's explanation may trail its ACK
@@ -102,10 +102,11 @@ async def _exchange(
     command's number, so an answer left on the wire would end the next command of that
     number (seen: the late ACK of an operator's re-sent RTL taken for the abort's LAND,
     which was lost and never sent again). Other commands go at once, and so does the
-    caller: the late answers are awaited apart from it."""
+    caller: the late answers are awaited apart from it. Answers still owed when that
+    wait runs out are taken by the next command of the number as not its own (`_Tally`)."""
     turn = link.command_turn(command)
-    await turn.acquire()
-    tally = _Tally()
+    await turn.lock.acquire()
+    tally = _Tally(skip=turn.take_owed(asyncio.get_running_loop().time()))
     sub = link.subscribe(["COMMAND_ACK", "STATUSTEXT"])
     try:
         link.ensure_up()  # a vehicle not heard lately: fail now, do not wait out every retry
@@ -115,16 +116,25 @@ async def _exchange(
             link.spawn(_late_answers(sub, command, tally, policy.timeout_s, turn))
         else:
             sub.close()
-            turn.release()
+            turn.lock.release()
+
+
+OWED_FOR_S = 5.0
+"""How long an answer given up on may still come: a link's delay, not a vehicle's."""
 
 
 @dataclass
 class _Tally:
-    """Attempts sent and final answers received (an IN_PROGRESS is not one)."""
+    """Attempts sent and final answers received (an IN_PROGRESS is not one), and the
+    answers to skip first: owed to an earlier command of the number, whose wait for them
+    ran out (fuzzed flight 14852: a pause, lost, took the late ACK of the continue it
+    had cancelled for its own; the vehicle crept on through the fleet's hold, 3.04 m
+    from another). Skipping one that was this command's own costs a re-send."""
 
     sent: int = 0
     answered: int = 0
     last_sent: float = 0.0
+    skip: int = 0
 
 
 async def _attempts(
@@ -165,7 +175,11 @@ async def _await_ack(
         if msg.get_type() == "STATUSTEXT":
             texts.append(_text(msg))
         elif msg.command == command:
-            tally.answered += msg.result != mavlink2.MAV_RESULT_IN_PROGRESS
+            final = msg.result != mavlink2.MAV_RESULT_IN_PROGRESS
+            if final and tally.skip:
+                tally.skip -= 1  # an earlier command's
+                continue
+            tally.answered += final
             return msg
 
 
@@ -196,10 +210,11 @@ async def _await_final_ack(
 
 
 async def _late_answers(
-    sub: Subscription, command: int, tally: _Tally, timeout_s: float, turn: asyncio.Lock
+    sub: Subscription, command: int, tally: _Tally, timeout_s: float, turn: CommandTurn
 ) -> None:
     """Take the answers still owed to earlier attempts, until the last attempt's timeout
-    (one lost on the way is not waited for longer), then let the next command go."""
+    (one lost on the way is not waited for longer), then let the next command go, telling
+    it how many may still come."""
     deadline = tally.last_sent + timeout_s
     loop = asyncio.get_running_loop()
     try:
@@ -208,7 +223,9 @@ async def _late_answers(
                 await _await_ack(sub, command, deadline - loop.time(), [], tally)
     finally:
         sub.close()
-        turn.release()
+        turn.owed = tally.sent - tally.answered + tally.skip
+        turn.owed_until = loop.time() + OWED_FOR_S
+        turn.lock.release()
 
 
 async def _collect_trailing_texts(sub: Any, texts: list[str]) -> None:

@@ -62,6 +62,22 @@ class LinkSettings:
     )
 
 
+@dataclass
+class CommandTurn:
+    """The turn of the commands of one number on a link (`VehicleLink.command_turn`), and
+    the answers owed to an earlier one whose wait for them ran out: the next command of
+    the number takes that many of its number's answers as theirs, not its own."""
+
+    lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+    owed: int = 0
+    owed_until: float = 0.0
+
+    def take_owed(self, now: float) -> int:
+        """Answers still owed by earlier commands (none once `owed_until` has passed)."""
+        owed, self.owed = (self.owed if now < self.owed_until else 0), 0
+        return owed
+
+
 class VehicleLink:
     """One vehicle (one autopilot system id) on a MAVLink connection."""
 
@@ -92,7 +108,7 @@ class VehicleLink:
         self.gap_began: float | None = None  # loop time the latest heartbeat gap began
         self.last_sent: float | None = None  # loop time we last sent the vehicle anything
         self.identity: VehicleIdentity | None = None  # what it reported (gcs.mavlink.identity)
-        self._command_turns: dict[int, asyncio.Lock] = {}
+        self._command_turns: dict[int, CommandTurn] = {}
         self.modes = ModeHistory()  # what it was asked for lately, by every command sender
         self._received(heartbeat)
         connection.attach(self.sysid, self._received)
@@ -111,12 +127,12 @@ class VehicleLink:
             self.state.arm_sent = self.last_sent
         self.connection.send(msg, self.sysid)
 
-    def command_turn(self, command: int) -> asyncio.Lock:
+    def command_turn(self, command: int) -> CommandTurn:
         """Held while a command of this number is under way: a COMMAND_ACK names only the
         command's number, so two of one number at once (an operator's RTL still being
         re-sent when the abort's LAND goes out, both DO_SET_MODE) would take each other's
         ACK, and the lost one would never be sent again."""
-        return self._command_turns.setdefault(command, asyncio.Lock())
+        return self._command_turns.setdefault(command, CommandTurn())
 
     # --- receiving ---------------------------------------------------------------------
 

@@ -68,6 +68,9 @@ FOUND = {
     11531: "(the mock's) abort with LAND at 10 m/s: the mock's LAND stopped with WP_JERK, "
     "40 % further on than ArduCopter's (PSC_JERK_NE), and uav4 came down 5.82 m from "
     "uav2, which waited for it to pass",
+    14852: "gap swap of 6 UAVs at 5 m/s, 20 % loss in and 0.1 s latency on uav5: the "
+    "operator's pause, lost, took the late ACK of the continue it had cancelled for its "
+    "own; uav5 crept on through the hold to 3.04 m from uav6",
 }
 
 

@@ -170,6 +170,59 @@ async def test_a_late_answer_to_a_resent_command_does_not_end_the_next_of_its_nu
         await link.close()
 
 
+class SlowPauses:
+    """Answers a DO_PAUSE_CONTINUE's continue after `continue_s` and loses the first
+    pause sent to it."""
+
+    def __init__(self, continue_s: float) -> None:
+        self.peer: Peer | None = None
+        self.continue_s = continue_s
+        self.heard_pauses = 0
+        self.answered: list[int] = []  # 1: a continue, 0: a pause
+
+    def __call__(self, msg: Any) -> list[Any]:
+        if msg.get_type() != "COMMAND_LONG" or msg.command != PAUSE_CONTINUE:
+            return []
+        go = int(msg.param1)
+        if go == 0:
+            self.heard_pauses += 1
+            if self.heard_pauses == 1:
+                return []  # lost
+        delay = self.continue_s if go else 0.0
+        asyncio.get_running_loop().call_later(delay, self._answer, go)
+        return []
+
+    def _answer(self, go: int) -> None:
+        assert self.peer is not None
+        self.answered.append(go)
+        self.peer.send(self.peer.codec.command_ack_encode(PAUSE_CONTINUE, 0))
+
+
+PAUSE_CONTINUE = mavlink2.MAV_CMD_DO_PAUSE_CONTINUE
+
+
+@pytest.mark.virtual_clock
+async def test_an_answer_owed_to_a_given_up_command_does_not_end_the_next_of_its_number() -> None:
+    """The passing order's continue is cancelled on its way (the operator holds the
+    fleet); its ACK comes after the wait for it has run out, while the operator's pause,
+    lost, waits for its own. The pause must not take that ACK: it is sent again (fuzzed
+    flight 14852: the vehicle crept on through the hold, 3.04 m from another)."""
+    autopilot = SlowPauses(continue_s=0.35)
+    link, peer = await linked(autopilot)
+    autopilot.peer = peer
+    actions = FlightActions(link, CommandPolicy(timeout_s=0.2, retries=3))
+    try:
+        going = asyncio.ensure_future(actions.resume())
+        await asyncio.sleep(0.05)  # the continue is out
+        going.cancel()
+        await asyncio.sleep(0.2)  # its wait has run out: the next of its number may go
+        await actions.pause()
+        assert autopilot.heard_pauses == 2  # the lost one sent again
+        assert autopilot.answered == [1, 0]  # the continue's late, then the pause's
+    finally:
+        await link.close()
+
+
 class ModeSwitches:
     """ArduCopter's mode switches, accepted at once; its mode goes out in a HEARTBEAT when
     the test says so (a late copy of an earlier switch is the test setting `mode`)."""
