@@ -102,8 +102,9 @@ async def _exchange(
     command's number, so an answer left on the wire would end the next command of that
     number (seen: the late ACK of an operator's re-sent RTL taken for the abort's LAND,
     which was lost and never sent again). Other commands go at once, and so does the
-    caller: the late answers are awaited apart from it. Answers still owed when that
-    wait runs out are taken by the next command of the number as not its own (`_Tally`)."""
+    caller: the late answers are awaited apart from it. A command its caller gave up on
+    before any answer came leaves the answers still owed when that wait runs out to the
+    next command of the number, which takes them as not its own (`_Tally`)."""
     turn = link.command_turn(command)
     await turn.lock.acquire()
     tally = _Tally(skip=turn.take_owed(asyncio.get_running_loop().time()))
@@ -111,6 +112,9 @@ async def _exchange(
     try:
         link.ensure_up()  # a vehicle not heard lately: fail now, do not wait out every retry
         return await _attempts(link, sub, command, encode, policy, tally)
+    except asyncio.CancelledError:
+        tally.given_up = not tally.answered
+        raise
     finally:
         if tally.answered < tally.sent and not link.closed:
             link.spawn(_late_answers(sub, command, tally, policy.timeout_s, turn))
@@ -126,15 +130,19 @@ OWED_FOR_S = 5.0
 @dataclass
 class _Tally:
     """Attempts sent and final answers received (an IN_PROGRESS is not one), and the
-    answers to skip first: owed to an earlier command of the number, whose wait for them
-    ran out (fuzzed flight 14852: a pause, lost, took the late ACK of the continue it
-    had cancelled for its own; the vehicle crept on through the fleet's hold, 3.04 m
-    from another). Skipping one that was this command's own costs a re-send."""
+    answers to skip first: owed to an earlier command of the number, given up on by its
+    caller before any answer came, whose wait for them ran out (fuzzed flight 14852: a
+    pause, lost, took the late ACK of the continue it had cancelled for its own; the
+    vehicle crept on through the fleet's hold, 3.04 m from another). Skipping one that
+    was this command's own costs a re-send, so the answers owed to attempts a later
+    one's answer ended are not carried: under 20 % loss most of them are lost, and the
+    re-sends they cost held brakes up by 0.2 s at 10 m/s (fuzzed flight 15490, 0.44 m)."""
 
     sent: int = 0
     answered: int = 0
     last_sent: float = 0.0
     skip: int = 0
+    given_up: bool = False
 
 
 async def _attempts(
@@ -223,7 +231,7 @@ async def _late_answers(
                 await _await_ack(sub, command, deadline - loop.time(), [], tally)
     finally:
         sub.close()
-        turn.owed = tally.sent - tally.answered + tally.skip
+        turn.owed = tally.sent - tally.answered + tally.skip if tally.given_up else 0
         turn.owed_until = loop.time() + OWED_FOR_S
         turn.lock.release()
 
