@@ -71,15 +71,10 @@ it had (ArduCopter SITL stopped within 8.7 m from 5 m/s)."""
 SLOW_AT_10 = {
     "gap-swap-0": "at 10 m/s real ArduCopter flew the gap swap 1.31x its timed flight "
     "(2026-12-03), 1.16x (88.0 / 76 s) and, once corners and stops were timed as "
-    "ArduCopter flies them, 1.26x (88.0 / 70 s, 2026-12-06): its uav5 comes in 17 s after "
-    "its timing, at 5 m/s too (there the mock flies the same plan in 80.7 s, SITL in 86.7 s)",
-    "case-6": "at 10 m/s `mvo-gcs fly` flew case VI 1.16x its timed flight (35.9 s and "
-    "36.0 s against 31.0 s, 2026-12-06, at 1e1a833 and after it alike; the service's "
-    "flight 1.14x, and 1.19x (36.9 / 31.1 s, 36.4 s by `mvo-gcs fly`) once a vehicle "
-    "flying steady below its track's speed was taken as setting off, as fuzzed flight "
-    "11574 needed): uav1 and uav2 wait for each other 11 times and come in 5 s after "
-    "their timing; the mock flies the same plan in 30.5 s, SITL in 36.9 s in the same run "
-    "(bench/flight_speed.py --scenarios case-6 --speeds 10)",
+    "ArduCopter flies them, 1.26x (88.0 / 70 s, 2026-12-06); with legs timed from rest "
+    "to rest 1.16x and 1.17x (88.2 and 89.0 / 76 s, 2026-12-06): its uav5 comes in late "
+    "after its waits, at 5 m/s too (there the mock flies the same plan in 80.7 s, SITL "
+    "in 86.7 s)",
 }
 """Known shortfalls of the timing at 10 m/s on real SITL: separation and landings are
 still checked; the mission time then fails as expected (xfail) instead of passing."""

@@ -178,6 +178,19 @@ def test_a_creep_its_mission_sped_up_again_is_judged_on_the_legs_speed() -> None
     assert on_its_approach == Gate.CREEP
 
 
+def test_a_creep_whose_reported_speed_wavers_is_still_judged_as_a_creep() -> None:
+    """Real ArduCopter's reported speed wavers about a creep's 0.5 m/s: judged as faster
+    than a creep at 0.62 m/s, a vehicle 2 m short was stopped, sent on again at once (its
+    gap still fits a creep), and stopped again, four times running (case VI at 10 m/s on
+    SITL: 13 waits, 1.20x its timed flight). On its approach it is a creep, which a pause
+    stops anywhere; much faster, a speed item took over (fuzzed flight 9979, above)."""
+    rule = StoppingRule()
+    assert rule.decide(Gate.STOP, 2.0, 0.0, 0.0, LIMITS, True) == Gate.CREEP
+    assert rule.decide(Gate.CREEP, 2.0, 0.62, 0.0, LIMITS, True, 0.5) == Gate.CREEP
+    assert rule.decide(Gate.CREEP, 2.0, 1.2, 0.0, LIMITS, True, 0.5) == Gate.STOP
+    assert rule.decide(Gate.CREEP, 0.5, 0.62, 0.0, LIMITS, True, 0.5) == Gate.STOP  # there
+
+
 def test_a_vehicle_flying_steady_below_its_tracks_speed_is_judged_as_setting_off() -> None:
     """Fuzzed flight 11574: out of a corner at a steady 2.66 m/s on a 10 m/s track, a
     vehicle was let go 11.1 m short of its limit (room enough at that speed held), sped up
