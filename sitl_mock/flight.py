@@ -14,6 +14,7 @@ from .flavour import Flavour
 from .kinematics import Body, NavLimits
 from .manoeuvres import (
     IN_AIR,
+    LANDING,
     ON_GROUND,
     TAKEOFF,
     Climb,
@@ -35,6 +36,11 @@ FAILED: int = mavlink.MAV_RESULT_FAILED
 DENIED: int = mavlink.MAV_RESULT_DENIED
 
 AIRBORNE_ABOVE_M = 0.5
+LAND_DETECT_S = 2.1
+"""Seconds from touching the ground to "Land complete" and disarming: ArduCopter's land
+detector waits for its motors to sit at their lower limit for a second, then spools them
+down before it disarms (SITL 4.8.0-dev: 2.1 s after each of six landings touched down;
+the mock disarmed at the touch, and a vehicle waiting for the landing went 2 s early)."""
 NOT_ARMABLE = frozenset({FlightMode.AUTO, FlightMode.RTL, FlightMode.LAND})
 RALLY_LIMIT_M = 300.0
 """ArduCopter's RALLY_LIMIT_KM default: a nearest rally point further away is not used."""
@@ -101,6 +107,7 @@ class FlightController:
         self._mission_start_given = False
         self._airborne = False
         self._idle_since: float | None = None
+        self._touched_at: float | None = None
         self.runner.stop()
 
     # -- state ------------------------------------------------------------------------------
@@ -151,6 +158,8 @@ class FlightController:
         if not self._airborne:
             climbing = self.armed and phase == TAKEOFF
             return TAKEOFF if climbing else ON_GROUND
+        if self._touched_at is not None:  # down, until the land detector is sure
+            return LANDING
         return phase if phase is not None else IN_AIR
 
     def limits(self) -> NavLimits:
@@ -432,9 +441,13 @@ class FlightController:
         alt = self.body.alt
         if alt > AIRBORNE_ABOVE_M:
             self._airborne = True
-            self._idle_since = None
+            self._idle_since = self._touched_at = None
         elif self._airborne and alt <= 0.0:
-            self._airborne = False
+            if self._touched_at is None:
+                self._touched_at = now
+            if now - self._touched_at < LAND_DETECT_S:
+                return
+            self._airborne, self._touched_at = False, None
             self._say(mavlink.MAV_SEVERITY_INFO, "Land complete")
             self._disarm()
         elif not self._airborne and self.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
@@ -541,9 +554,9 @@ class FlightController:
     def _manoeuvre_done(self, now: float) -> None:
         if self.mode == FlightMode.TAKEOFF:
             self._enter(self.flavour.after_takeoff_mode, now)
-        elif self._airborne:
+        elif self._airborne and self.body.alt > 0.0:
             self._run(Hold(), now)
-        else:
+        else:  # on the ground (a landing waits for its land detector there)
             self._manoeuvre = None
 
     def _disarm(self) -> None:
@@ -559,7 +572,7 @@ class FlightController:
         if self.body.alt > 0:
             east, north, _ = self.body.position
             self.body.place(east, north, 0.0)  # a forced disarm in flight: it falls
-        self._airborne = False
+        self._airborne, self._touched_at = False, None
 
     def _px4_takeoff_alt(self) -> float:
         return self.params.get("MIS_TAKEOFF_ALT") if "MIS_TAKEOFF_ALT" in self.params else 2.5

@@ -52,6 +52,7 @@ ARDUCOPTER_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("WP_ACC_Z", 1.0, REAL32),
     ("WP_JERK", 1.0, REAL32),
     ("PSC_JERK_NE", 5.0, REAL32),
+    ("ATC_INPUT_TC", 0.15, REAL32),
     ("LAND_SPD_MS", 0.5, REAL32),
     ("RTL_ALT_M", 15.0, REAL32),
     ("FENCE_ENABLE", 0, INT8),
@@ -89,13 +90,18 @@ PX4_DEFAULTS: tuple[tuple[str, float, int], ...] = (
 """PX4 names, SI units and defaults."""
 
 
-ARDUCOPTER_EFFECTIVE_JERK = 1.0
-"""ArduCopter's S-curves limit snap as well (the jerk itself ramps up over 0.3 s), which
-the mock's jerk-only S-curves leave out. At cruise speeds that costs little: on ArduCopter
-SITL (4.8.0-dev) a straight leg from rest to rest took its length over the speed plus
-4.6 s at 5 m/s and 6.8 s at 10 m/s, and the whole WP_JERK gives 4.5 s and 6.5 s (half of
-it, the earlier choice, gave 6.3 s and 9 s: stops twice too long). At 1 m/s the snap
-matters more: 22.9 s there for 20 m, 22.0 s here (bench/results/kinematics_vs_sitl.txt)."""
+def arducopter_s_curve_jerk(params: ParameterSet) -> float:
+    """The constant jerk at which the mock's S-curves change speed as fast as ArduCopter's.
+
+    ArduCopter's limit snap as well: their jerk builds up and dies away over twice
+    ATC_INPUT_TC (SCurve, with AC_WPNav's snap of half WP_JERK·π / (2·ATC_INPUT_TC)), so
+    each ramp of the acceleration takes WP_ACC / WP_JERK plus that, which the same ramp at
+    this jerk takes too. With the defaults that is 0.89 of WP_JERK: a 22 m leg from rest
+    to rest peaks at 4.77 m/s (ArduCopter SITL 4.65-4.73; the whole WP_JERK gave 4.95 and
+    each such leg 0.1-0.4 s short) and a stop from 10 m/s takes 6.8 s (SITL 6.8;
+    bench/results/short_legs_vs_sitl.md, kinematics_vs_sitl.txt)."""
+    accel, jerk = params.get("WP_ACC"), params.get("WP_JERK")
+    return accel / (accel / jerk + 2 * max(params.get("ATC_INPUT_TC"), 0.1))
 
 
 ARDUCOPTER_BRAKE_DECEL = 7.5
@@ -112,7 +118,7 @@ def arducopter_limits(params: ParameterSet) -> NavLimits:
         vertical_accel=params.get("WP_ACC_Z"),
         land_speed=params.get("LAND_SPD_MS"),
         accept_radius=params.get("WP_RADIUS_M"),
-        jerk=params.get("WP_JERK") * ARDUCOPTER_EFFECTIVE_JERK,
+        jerk=arducopter_s_curve_jerk(params),
         stop_jerk=params.get("PSC_JERK_NE"),
         brake_decel=ARDUCOPTER_BRAKE_DECEL,
     )

@@ -24,7 +24,10 @@ NAMES: dict[str, tuple[tuple[str, float], ...]] = {
     "jerk_m_s3": (("WP_JERK", 1.0), ("WPNAV_JERK", 1.0)),
     "corner_accel_m_s2": (("WP_ACC_CNR", 1.0), ("WPNAV_ACCEL_C", 100.0)),
     "stop_jerk_m_s3": (("PSC_JERK_NE", 1.0), ("PSC_JERK_XY", 1.0)),
+    "jerk_ramp_s": (("ATC_INPUT_TC", 0.5),),  # the S-curves' jerk builds over 2 x this
     "descent_m_s": (("WP_SPD_DN", 1.0), ("WPNAV_SPEED_DN", 100.0)),
+    "land_m_s": (("LAND_SPD_MS", 1.0), ("LAND_SPEED", 100.0)),
+    "vertical_accel_m_s2": (("WP_ACC_Z", 1.0), ("WPNAV_ACCEL_Z", 100.0)),
 }
 """CopterLimits field: (parameter, units per SI unit), newest name first."""
 

@@ -136,7 +136,7 @@ class _Vehicle:
         leg = self.leg_speed[max(0, k - 1)] if len(self.leg_speed) else 0.0
         if self.gate == Gate.CREEP:
             leg = min(leg, self.approach_m_s)
-        peak = self.v + max(self.a, 0.0) ** 2 / (2 * self.limits.jerk_m_s3)  # once `a` is 0
+        peak = self.v + max(self.a, 0.0) ** 2 / (2 * self.limits.s_curve_jerk_m_s3)  # once `a` is 0
         for j in range(k, min(k + 2, len(self.vertex_s))):
             ahead = self.vertex_speed[j]
             if peak > ahead and self.vertex_s[j] - self.s <= self.limits.slowing_distance(
@@ -167,7 +167,7 @@ class _Vehicle:
         if self.starting_s > 0:
             self.starting_s -= dt
             target = 0.0
-        jerk = limits.stop_jerk_m_s3 if self.gate == Gate.STOP else limits.jerk_m_s3
+        jerk = limits.stop_jerk_m_s3 if self.gate == Gate.STOP else limits.s_curve_jerk_m_s3
         error = target - self.v
         wanted = min(math.sqrt(2 * jerk * abs(error)), limits.accel_m_s2)
         wanted = math.copysign(wanted, error) if error else 0.0

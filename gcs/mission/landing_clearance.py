@@ -1,6 +1,6 @@
 """The plan re-timed so that no vehicle waits out another's landing on its way.
 
-The planner's UAVs are gone the moment they arrive; a copter lands there (27 s from 20 m
+The planner's UAVs are gone the moment they arrive; a copter lands there (31 s from 20 m
 at ArduCopter's defaults) and is in everyone's way until it is down. Where the plan
 brings a UAV (the passer) within reach of another's goal soon after that one arrives,
 the passing order stops the passer for the whole landing, and everyone who waits for

@@ -30,6 +30,11 @@ DEFAULT_SPEED_M_S = 5.0
 BRAKE_REACH_S = 2.0
 """A brake reaches about this many seconds of the speed it starts from (SITL: 8.7 m from
 5 m/s, 20.1 m from 10 m/s)."""
+LAND_SETTLE_S = 0.9
+"""Seconds a copter hovers over its landing point, stopped, before it descends (SITL)."""
+LAND_DETECT_S = 2.1
+"""Seconds from touching the ground to disarmed: ArduCopter's land detector waits for its
+motors to sit at their lower limit for a second, then spools them down (SITL: 2.1 s)."""
 SPEEDING_UP_M_S2 = 0.05
 """Above this a vehicle counts as speeding up (its S-curve may reach WPNAV_ACCEL)."""
 SPARE = 1.1
@@ -43,12 +48,14 @@ class CopterLimits:
     speed_m_s: float = DEFAULT_SPEED_M_S  # WPNAV_SPEED, or the mission's DO_CHANGE_SPEED
     accel_m_s2: float = 2.5  # WPNAV_ACCEL
     jerk_m_s3: float = 1.0  # WPNAV_JERK: how the legs' S-curves change speed
+    jerk_ramp_s: float = 0.3  # 2 x ATC_INPUT_TC: how long the S-curves' jerk takes to build
     stop_jerk_m_s3: float = 5.0  # PSC_JERK_NE: how a paused mission slows to a stop
     corner_accel_m_s2: float = 5.0  # WPNAV_ACCEL_C (ArduCopter: 2 x WPNAV_ACCEL when 0)
     radius_m: float = 0.5  # WP_RADIUS_M: how far a blended corner may pass from its point
     descent_m_s: float = 1.5  # WPNAV_SPEED_DN: how fast LAND comes down from high up
     land_m_s: float = 0.5  # LAND_SPEED: the last part of a landing
     land_slow_below_m: float = 10.0  # LAND_ALT_LOW: where that last part begins
+    vertical_accel_m_s2: float = 1.0  # WPNAV_ACCEL_Z: how a landing's descent speeds up and slows
 
     def __post_init__(self) -> None:
         for name in (
@@ -57,11 +64,24 @@ class CopterLimits:
         ):  # fmt: skip
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        if not self.jerk_ramp_s >= 0:
+            raise ValueError(f"jerk_ramp_s must not be negative, got {self.jerk_ramp_s}")
+
+    @functools.cached_property
+    def s_curve_jerk_m_s3(self) -> float:
+        """The constant jerk at which a speed change at full acceleration takes as long as
+        ArduCopter's, whose jerk itself builds up and dies away over `jerk_ramp_s` (SCurve
+        limits snap to half of WPNAV_JERK·π / (2·ATC_INPUT_TC)): each ramp of the
+        acceleration takes accel/jerk + jerk_ramp_s, not accel/jerk. With the defaults that
+        is 0.89 of WPNAV_JERK: a 22 m leg from rest to rest peaks at 4.77 m/s (SITL
+        4.65-4.73; the whole WPNAV_JERK, 4.95), a stop from 10 m/s takes 6.8 s (SITL 6.8)."""
+        accel = self.accel_m_s2
+        return accel / (accel / self.jerk_m_s3 + self.jerk_ramp_s)
 
     def change_time(self, delta_v: float, jerk: float | None = None) -> float:
         """Seconds a jerk-limited change of speed by `delta_v` takes, from and to no
         acceleration (a triangle of acceleration below accel²/jerk, a trapezium above)."""
-        dv, accel, jerk = abs(delta_v), self.accel_m_s2, jerk or self.jerk_m_s3
+        dv, accel, jerk = abs(delta_v), self.accel_m_s2, jerk or self.s_curve_jerk_m_s3
         if dv <= accel * accel / jerk:
             return 2.0 * math.sqrt(dv / jerk)
         return dv / accel + accel / jerk
@@ -121,16 +141,26 @@ class CopterLimits:
     ) -> float:
         """Metres from `speed` down to `to` while speeding up at `accel`, which must first
         ramp down to nothing (the speed still grows meanwhile)."""
-        accel, jerk = max(0.0, accel), jerk or self.jerk_m_s3
+        accel, jerk = max(0.0, accel), jerk or self.s_curve_jerk_m_s3
         ramp = accel / jerk
         before = speed * ramp + accel * ramp * ramp / 2 - jerk * ramp**3 / 6
         return before + self.change_distance(speed + accel * ramp / 2, to, jerk)
 
     def landing_time(self, altitude_m: float) -> float:
-        """Seconds from over the landing point to the ground, as ArduCopter's LAND does
-        (fast down to LAND_ALT_LOW, slow below); the vehicle is in the way until then."""
-        slow = min(altitude_m, self.land_slow_below_m)
-        return (altitude_m - slow) / self.descent_m_s + slow / self.land_m_s
+        """Seconds from stopping over the landing point to disarmed on the ground, as
+        ArduCopter's LAND does: it settles, speeds up to its descent speed, slows on the
+        way to LAND_ALT_LOW so as to pass it at the landing speed, comes down the rest at
+        that, and disarms once its land detector is sure. The vehicle is in the way until
+        then. (SITL 4.8.0-dev from 20 m, six landings: 30.1 to 31.3 s from stopping;
+        this says 30.75 s, the descent and landing speeds alone 26.7 s.)"""
+        low = min(altitude_m, self.land_slow_below_m)
+        fast, land, accel = self.descent_m_s, self.land_m_s, self.vertical_accel_m_s2
+        if altitude_m <= low:
+            return LAND_SETTLE_S + land / (2 * accel) + low / land + LAND_DETECT_S
+        slowing_m = min(max(fast * fast - land * land, 0.0) / (2 * accel), altitude_m - low)
+        slowing_s = 2 * slowing_m / (fast + land)  # as long as a steady slow-down takes
+        high_s = (altitude_m - low - slowing_m) / fast + fast / (2 * accel) + slowing_s
+        return LAND_SETTLE_S + high_s + low / land + LAND_DETECT_S
 
     def corner_speed(self, turn_rad: float, leg_peak_m_s: float | None = None) -> float:
         """The lowest speed through a corner turning by `turn_rad` (0: straight on) between
@@ -149,7 +179,7 @@ class CopterLimits:
         half = 0.5 * min(abs(turn_rad), math.pi - 1e-6)
         if half < 1e-6:
             return math.inf
-        jerk, peak, sin_half = self.jerk_m_s3, self.stop_peak_m_s2(), math.sin(half)
+        jerk, peak, sin_half = self.s_curve_jerk_m_s3, self.stop_peak_m_s2(), math.sin(half)
         u = min(
             _tail_time(self.radius_m / (2 * sin_half), jerk, peak),
             0.5 * self.change_time(leg_peak_m_s or self.speed_m_s),  # the next leg half-way up
@@ -162,7 +192,7 @@ class CopterLimits:
     def rest_to_rest_peak(self, distance: float) -> float:
         """The top speed of the quickest S-curve from rest to rest over `distance` metres
         (no faster than cruise): half the way up, half down."""
-        a, j, half = self.accel_m_s2, self.jerk_m_s3, max(distance, 0.0) / 2
+        a, j, half = self.accel_m_s2, self.s_curve_jerk_m_s3, max(distance, 0.0) / 2
         if half * j * j <= a**3:  # no acceleration plateau: half = v·sqrt(v / j)
             peak = float((half * math.sqrt(j)) ** (2 / 3))
         else:  # half = v·(v / a + a / j) / 2
@@ -172,14 +202,14 @@ class CopterLimits:
     def stop_peak_m_s2(self, speed: float | None = None) -> float:
         """The deceleration an S-curve stop from `speed` (default cruise) peaks at."""
         speed = self.speed_m_s if speed is None else speed
-        return min(self.accel_m_s2, math.sqrt(self.jerk_m_s3 * speed))
+        return min(self.accel_m_s2, math.sqrt(self.s_curve_jerk_m_s3 * speed))
 
     def speed_before_rest(self, distance: float, from_speed: float) -> float:
         """The speed an S-curve stop from `from_speed` has `distance` metres before its
         rest. The stop is antisymmetric about its middle: the speed it has lost t seconds
         in is the speed it has left t seconds before its end, so its first half is its
         tail (`_stop_tail`) turned round."""
-        jerk, peak = self.jerk_m_s3, self.stop_peak_m_s2(from_speed)
+        jerk, peak = self.s_curve_jerk_m_s3, self.stop_peak_m_s2(from_speed)
         total = self.change_time(from_speed)
         if distance >= 0.5 * from_speed * total:
             return from_speed
@@ -329,7 +359,7 @@ def entry_speed_for(distance: float, exit_speed: float, limits: CopterLimits) ->
     profile, which takes at least as long as the triangle: the answer errs low (safe)."""
     if distance <= 0:
         return exit_speed
-    a, ramp = limits.accel_m_s2, limits.accel_m_s2**2 / limits.jerk_m_s3
+    a, ramp = limits.accel_m_s2, limits.accel_m_s2**2 / limits.s_curve_jerk_m_s3
     # 2a·d = v² - e² + (v + e)·ramp, so v² + ramp·v - (e² - e·ramp + 2a·d) = 0
     c = exit_speed**2 - exit_speed * ramp + 2 * a * distance
     return max(exit_speed, 0.5 * (-ramp + math.sqrt(ramp * ramp + 4 * c)))
@@ -411,7 +441,7 @@ class StoppingRule:
         (fuzzed flight 11574: let go out of a corner at a steady 2.66 m/s, it sped up on
         its next leg, and its pause ran past its limit to 5.65 m from another)."""
         if speed < limits.speed_m_s - self.approach_slack_m_s and accel > -SPEEDING_UP_M_S2:
-            return max(accel, limits.jerk_m_s3 * self.reaction_s)
+            return max(accel, limits.s_curve_jerk_m_s3 * self.reaction_s)
         return accel
 
     def approach_speed(self, gap_m: float, limits: CopterLimits, waited_on: bool) -> float | None:

@@ -26,6 +26,7 @@ from gcs.mission.passing_order import PassingOrder, PlannedPath
 from planner.cases import load_case
 from planner.model.plan import PlannedUAV
 from planner.pipeline import PlannerSettings, plan
+from sitl_mock.params import ARDUCOPTER_DEFAULTS, ParameterSet, arducopter_limits
 from sitl_mock.scurve import leg_profile
 from tests.unit.test_passing_order import planned
 
@@ -95,9 +96,11 @@ def test_a_corner_is_taken_as_slowly_as_real_arducopter_takes_it(
 ) -> None:
     """ArduCopter blends the legs' S-curves inside the waypoint radius: with 0.5 m it took
     a 30° turn at 3 m/s from 5 or 10 m/s. A bend at the corner acceleration, the model
-    before, said 8.4 m/s, and the timing ran ahead of every flight."""
+    before, said 8.4 m/s, and the timing ran ahead of every flight. (The S-curves' jerk
+    builds up over 0.3 s on ArduCopter; with one constant jerk for that, the timing may
+    take a corner a little slower than SITL did.)"""
     speed = CopterLimits(speed_m_s=cruise, radius_m=0.5).corner_speed(math.radians(degrees))
-    assert lowest <= speed <= 1.3 * lowest
+    assert 0.95 * lowest <= speed <= 1.3 * lowest
 
 
 @pytest.mark.parametrize("cruise", [5.0, 10.0])
@@ -115,7 +118,7 @@ def test_a_leg_into_a_stop_is_timed_as_the_mocks_s_curve_flies_it(
     timed = fly(
         {"a": path}, {"a": np.full(2, cruise)}, {"a": limits}, stops={"a": np.array([metres])}
     )
-    s_curve = leg_profile(metres, 0.0, cruise, limits.accel_m_s2, limits.jerk_m_s3)
+    s_curve = leg_profile(metres, 0.0, cruise, limits.accel_m_s2, limits.s_curve_jerk_m_s3)
     assert timed["a"].time_at(metres - 0.01) == pytest.approx(s_curve.duration, abs=0.6)
 
 
@@ -136,13 +139,24 @@ def test_a_copter_is_only_as_fast_as_a_leg_from_rest_to_rest_and_its_next_stop_a
     assert free.max() == pytest.approx(LIMITS.rest_to_rest_peak(float(s[-1])))  # one 58 m leg
 
 
+def test_a_landing_takes_as_long_as_real_arducopter_takes_to_disarm() -> None:
+    """From stopping over its goal at 20 m to disarmed, six ArduCopter SITL landings took
+    30.1 to 31.3 s: it settles, slows on its way to LAND_ALT_LOW and its land detector
+    waits 2.1 s on the ground. The descent and landing speeds alone say 26.7 s, and a
+    vehicle waiting for the landing was timed to go 4 s before it could."""
+    assert 30.1 <= CopterLimits().landing_time(20.0) <= 31.3
+    assert CopterLimits().landing_time(10.0) < CopterLimits().landing_time(20.0)
+
+
 @pytest.mark.parametrize("metres", [10.0, 22.0, 30.0, 60.0, 200.0])
 def test_a_leg_from_rest_to_rest_peaks_where_the_mocks_s_curve_does(metres: float) -> None:
     """A leg between two waypoints is flown from rest to rest (ArduCopter's SCurve): its
     top speed is the S-curve's over the leg, as the mock flies it (ArduCopter SITL: 22 m
     at 10 m/s peaked at 4.67 m/s, bench/results/short_legs_vs_sitl.md)."""
     limits = CopterLimits(speed_m_s=10.0)
-    s_curve = leg_profile(metres, 0.0, 10.0, limits.accel_m_s2, limits.jerk_m_s3)
+    mock = arducopter_limits(ParameterSet(ARDUCOPTER_DEFAULTS, bytewise=False))
+    assert mock.jerk == pytest.approx(limits.s_curve_jerk_m_s3)  # both limit snap alike
+    s_curve = leg_profile(metres, 0.0, 10.0, mock.accel, mock.jerk)
     peak = float(s_curve.states[:, 1].max())
     assert limits.rest_to_rest_peak(metres) == pytest.approx(peak, rel=1e-6)
 

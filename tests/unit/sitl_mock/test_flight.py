@@ -241,6 +241,28 @@ def test_rtl_climbs_flies_home_and_lands():
     assert math.hypot(*local(sim)) < 2.0
 
 
+def test_a_landing_passes_10_m_at_landing_speed_and_disarms_once_the_ground_is_sure():
+    """As ArduCopter SITL lands from 20 m: it slows on its way to LAND_ALT_LOW so as to be
+    at LAND_SPD_MS there, and stays armed and LANDING for 2.1 s on the ground while its
+    land detector makes sure. A mock that disarmed at the touch let a vehicle waiting for
+    the landing go 2 s early."""
+    sim, flight = make()
+    airborne_in_guided(sim, flight)
+    assert flight.set_mode(FlightMode.LAND, sim.sim_time) == ACCEPTED
+    samples = []
+    while sim.state(1).armed and sim.sim_time < 200.0:
+        sim.advance(0.1)
+        samples.append((sim.sim_time, sim.state(1).alt, flight.landed_state))
+    down_at = next(t for t, alt, _ in samples if alt <= 0.0)
+    disarmed_at = samples[-1][0]
+    assert disarmed_at - down_at == pytest.approx(2.1, abs=0.15)
+    on_ground = [state for t, _, state in samples[:-1] if t > down_at]
+    assert set(on_ground) == {mavlink.MAV_LANDED_STATE_LANDING}
+    at_10 = [t for t, alt, _ in samples if 9.9 <= alt <= 10.1]
+    rate = 0.2 / (at_10[-1] - at_10[0])  # over the 20 cm about 10 m
+    assert rate == pytest.approx(0.5, abs=0.2)  # SITL: 0.5-0.7 m/s about 10 m
+
+
 def test_px4_mission_mode_takes_off_by_itself_and_reports_modes():
     sim, flight = make("px4", mission=[at(0, 20, alt=10.0), land()])
     sim.advance(5.0)
