@@ -331,8 +331,8 @@ def leg_peaks(
     between the two waypoints it lies on gets: ArduCopter plans every leg so, and at a
     corner blends the one slowing down with the next speeding up (`corner_speed`); it does
     not carry its speed from leg to leg. A 22 m leg at 10 m/s peaked at 4.67 m/s on SITL
-    (4.95 by a constant-jerk S-curve, the mock's); timed at cruise through its corners, a
-    mission of such legs took SITL 1.38 times as long as its timing said."""
+    (4.76 by `rest_to_rest_peak`, as the mock flies it); timed at cruise through its
+    corners, a mission of such legs took SITL 1.38 times as long as its timing said."""
     index = np.flatnonzero(waypoint)
     stretch = np.diff(s_vertices[index])
     peaks = np.array([limits.rest_to_rest_peak(float(d)) for d in stretch])
