@@ -122,7 +122,7 @@ def fly_command(source: Path, urls: list[str], speed: float) -> list[str]:
     """`mvo-gcs fly` of the product in the working directory it runs in (this one, or an
     anchor's checkout: `python -m` imports from there first)."""
     return [
-        sys.executable, "-m", "gcs.cli", "fly", str(source), "--vehicles", ",".join(urls),
+        sys.executable, "-m", "gcs.cli.main", "fly", str(source), "--vehicles", ",".join(urls),
         "--max-speed", f"{speed:g}", "--connect-timeout", "60", *PLANNING,
     ]  # fmt: skip
 

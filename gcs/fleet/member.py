@@ -10,7 +10,7 @@ from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Mission
 from gcs.mavlink.mission_protocol import MissionClient
-from gcs.mission.build import Visit, takeoff_index
+from gcs.mission.build import Visit, first_leg_index, takeoff_index
 
 
 @dataclass
@@ -22,6 +22,9 @@ class Member:
     client: MissionClient
     tracker: RouteTracker  # the mission's items: reached, and when the timed flight does
     along: PathProgress  # metres along the path: what the passing order speaks of
+
+    def __post_init__(self) -> None:
+        self.actions.first_leg_seq = first_leg_index(self.mission.items)
 
     @property
     def takeoff_seq(self) -> int:
@@ -38,3 +41,4 @@ class Member:
         tracker.start_boot_ms = self.tracker.start_boot_ms
         self.link.state.reached.clear()  # seqs of the old mission mean nothing now
         self.mission, self.tracker = mission, tracker
+        self.actions.first_leg_seq = first_leg_index(mission.items)

@@ -358,3 +358,12 @@ def takeoff_index(items: tuple[MissionItem, ...]) -> int:
         if item.command == Command.NAV_TAKEOFF:
             return seq
     raise ValueError("the mission has no NAV_TAKEOFF: plan time 0 is undefined")
+
+
+def first_leg_index(items: tuple[MissionItem, ...]) -> int:
+    """The item the first leg flies to: the first after NAV_TAKEOFF that is not a DO_."""
+    after = takeoff_index(items) + 1
+    return next(
+        (seq for seq in range(after, len(items)) if items[seq].command != Command.DO_CHANGE_SPEED),
+        after,
+    )

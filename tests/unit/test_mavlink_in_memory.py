@@ -662,6 +662,40 @@ async def test_an_approach_flies_the_item_afresh_on_arducopter_not_its_paused_tr
         await link.close()
 
 
+async def test_an_approach_from_the_start_flies_the_first_leg_not_the_take_off() -> None:
+    """A vehicle the passing order holds at its start hovers out of its mission (GUIDED,
+    NAV_TAKEOFF current). Sent on in AUTO from there, its mission runs the DO_CHANGE_SPEED
+    after NAV_TAKEOFF and flies on at cruise speed whatever the approach asked (random
+    scatter of 8 at 10 m/s: 1.7 m into the encounter, the flight 1.24x its timing on
+    SITL); its first leg is made current before AUTO, and the approach's speed follows."""
+    link, peer = await linked(silent)
+
+    def arducopter(msg: Any) -> list[Any]:
+        if msg.get_type() == "MISSION_SET_CURRENT":
+            return [peer.codec.mission_current_encode(msg.seq)]
+        if msg.get_type() != "COMMAND_LONG":
+            return []
+        return [peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED)]
+
+    peer.reply = arducopter
+    guided, armed = 4, mavlink2.MAV_MODE_FLAG_SAFETY_ARMED | 0x01
+    peer.send(peer.codec.heartbeat_encode(2, 3, armed, guided, mavlink2.MAV_STATE_ACTIVE))
+    peer.send(peer.codec.mission_current_encode(1))
+    try:
+        while link.state.mode != "GUIDED" or link.state.mission_seq != 1:
+            await asyncio.sleep(0.01)
+        actions = FlightActions(link, mission=MissionClient(link))
+        actions.first_leg_seq = 3
+        actions.found_stopped_out_of_mission()
+        await actions.approach(1.0)
+        commands = [(m.command, m.param1, m.param2) for m in peer.sent("COMMAND_LONG")]
+        current, set_mode = mavlink2.MAV_CMD_DO_SET_MISSION_CURRENT, mavlink2.MAV_CMD_DO_SET_MODE
+        speed, auto = mavlink2.MAV_CMD_DO_CHANGE_SPEED, 3
+        assert commands[:3] == [(current, 3, 0), (set_mode, 1, auto), (speed, 1, 1.0)]
+    finally:
+        await link.close()
+
+
 @pytest.mark.parametrize("climbs", [True, False], ids=["lifting off", "still on the ground"])
 async def test_a_resent_take_off_refused_as_already_flying_is_a_take_off(climbs: bool) -> None:
     """20 % loss each way loses one command's ACK in five: the first NAV_TAKEOFF lifts the
