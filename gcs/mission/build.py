@@ -361,7 +361,7 @@ def takeoff_index(items: tuple[MissionItem, ...]) -> int:
 
 
 def first_leg_index(items: tuple[MissionItem, ...]) -> int:
-    """The item the first leg flies to: the first after NAV_TAKEOFF that is not a DO_."""
+    """The item the first leg flies to: the first after NAV_TAKEOFF but DO_CHANGE_SPEED."""
     after = takeoff_index(items) + 1
     return next(
         (seq for seq in range(after, len(items)) if items[seq].command != Command.DO_CHANGE_SPEED),

@@ -127,7 +127,8 @@ async def test_a_vehicle_sent_on_from_its_start_keeps_to_its_approach(
     approaches = [e for e in events if isinstance(e, Waiting) and e.uav_id == "uav6"]
     assert any(e.how == "creep" for e in approaches), approaches  # the case still arises
     separation = sim.min_separation()
-    assert separation is not None and separation.distance_m >= 6.0, separation
+    two_r = 2 * max(u.radius for u in scenario.uavs) * scenario.grid.cell_size_m
+    assert separation is not None and separation.distance_m >= two_r, separation
 
 
 async def _fleet(
