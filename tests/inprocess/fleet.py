@@ -5,8 +5,10 @@ ground station share one clock, so a flight takes seconds and a seed replays exa
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 from dataclasses import dataclass
 
+from gcs.fleet.events import FleetEvent
 from gcs.fleet.fleet import Fleet, FleetSettings, FlightReport
 from gcs.mavlink import client
 from gcs.mavlink.link import LinkSettings, VehicleLink
@@ -58,16 +60,22 @@ async def fly_plan(
     autopilot: Autopilot = Autopilot.ARDUPILOT,
     settings: FleetSettings | None = None,
     max_speed_m_s: float = DEFAULT_SPEED_M_S,
+    altitude_m: float = ALTITUDE_M,
+    record: Callable[[FleetEvent], None] | None = None,
 ) -> FlownCase:
-    """Upload, start and follow the plan on `sim` (vehicle k flies UAV k)."""
+    """Upload, start and follow the plan on `sim` (vehicle k flies UAV k); `record` is
+    handed every event of the flight."""
     autopilots = {u.id: autopilot for u in scenario.uavs}
     flight = flight_plan(
-        plan, scenario, autopilots, altitude_m=ALTITUDE_M, max_speed_m_s=max_speed_m_s
+        plan, scenario, autopilots, altitude_m=altitude_m, max_speed_m_s=max_speed_m_s
     )
     links = await connect_all(vehicles, sim)
     try:
         by_uav = {uav.id: link for uav, link in zip(scenario.uavs, links, strict=True)}
-        report = await Fleet(by_uav, flight, settings=settings).fly()
+        fleet = Fleet(by_uav, flight, settings=settings)
+        if record is not None:
+            fleet.record(record)
+        report = await fleet.fly()
     finally:
         await asyncio.gather(*(link.close() for link in links))
     separation = sim.min_separation()

@@ -111,24 +111,17 @@ async def test_a_vehicle_sent_on_from_its_start_keeps_to_its_approach(
     the_plan = plan(
         scenario.with_clearance(DEFAULT_CLEARANCE_M), PlannerSettings(time_budget_s=None)
     )
-    autopilots = {u.id: Autopilot.ARDUPILOT for u in scenario.uavs}
-    flight = flight_plan(the_plan, scenario, autopilots, altitude_m=20.0, max_speed_m_s=10.0)
     sim = await vehicles.at_starts(scenario)
-    links = await connect_all(vehicles, sim)
-    try:
-        fleet = Fleet({u.id: link for u, link in zip(scenario.uavs, links, strict=True)}, flight)
-        events: list[FleetEvent] = []
-        fleet.record(events.append)
-        report = await fleet.fly()
-    finally:
-        await asyncio.gather(*(link.close() for link in links))
-    assert report.completed, report.failed
+    events: list[FleetEvent] = []
+    flown = await fly_plan(
+        vehicles, sim, scenario, the_plan, max_speed_m_s=10.0, altitude_m=20.0,
+        record=events.append,
+    )  # fmt: skip
+    assert flown.report.completed, flown.report.failed
     assert [e for e in events if isinstance(e, LeadTaken)] == []
     approaches = [e for e in events if isinstance(e, Waiting) and e.uav_id == "uav6"]
     assert any(e.how == "creep" for e in approaches), approaches  # the case still arises
-    separation = sim.min_separation()
-    two_r = 2 * max(u.radius for u in scenario.uavs) * scenario.grid.cell_size_m
-    assert separation is not None and separation.distance_m >= two_r, separation
+    assert flown.sim_min_separation_m >= flown.two_r_m, flown.sim_min_separation_m
 
 
 async def _fleet(
