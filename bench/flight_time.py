@@ -13,6 +13,9 @@ and judges their safety with), with the plans `flight_speed.py` flies:
 - *order, no landing*: the passing order kept as the product keeps it (stopping
   distances, the reaction time), but a UAV out of the way the moment it reaches its
   goal, as the plan has it;
+- *order, 2R down*: the same, with a UAV out of the way once its landing has taken it
+  2R below the others (what counting vertical separation would give; the product does
+  not: its separation is the plan's, in the plane);
 - *product*: the product's timing, a vehicle in the way until it has landed at its goal.
 
 Each column is a lower bound on the ones after it. Run:
@@ -23,6 +26,7 @@ Each column is a lower bound on the ones after it. Run:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from dataclasses import dataclass
@@ -36,6 +40,7 @@ from gcs.cli.planning_options import add_planning_arguments, planner_settings  #
 from gcs.mavlink.mission_item import Autopilot  # noqa: E402
 from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, FlightPlan, flight_plan  # noqa: E402
 from gcs.mission.flight_timing import fly  # noqa: E402
+from gcs.mission.motion import LAND_SETTLE_S, CopterLimits  # noqa: E402
 from planner.experiments.machine import describe_machine  # noqa: E402
 from planner.model.scenario import Scenario  # noqa: E402
 from planner.pipeline import plan  # noqa: E402
@@ -45,7 +50,7 @@ from flight_speed import PLANNING, scenarios  # noqa: E402
 
 RESULTS = ROOT / "bench" / "results" / "flight_time.md"
 SPEEDS = (1.0, 5.0, 10.0)
-COLUMNS = ("plan", "alone", "order, no landing", "product")
+COLUMNS = ("plan", "alone", "order, no landing", "order, 2R down", "product")
 
 
 @dataclass
@@ -56,13 +61,42 @@ class Row:
     seconds: dict[str, float]
 
 
-def last_arrival(flight: FlightPlan, altitude_m: float) -> float:
+@dataclass(frozen=True)
+class OutOfTheWayBelow(CopterLimits):
+    """A lander taken for out of the way once it is `drop_m` below where it stopped:
+    LAND settles, then comes down at WPNAV_SPEED_DN (`CopterLimits.landing_time`) until
+    LAND_ALT_LOW; a drop that reaches below that counts the whole landing."""
+
+    drop_m: float = 0.0
+
+    def landing_time(self, altitude_m: float) -> float:
+        if altitude_m - self.drop_m < self.land_slow_below_m:
+            return super().landing_time(altitude_m)
+        speed_up_s = self.descent_m_s / (2 * self.vertical_accel_m_s2)  # (lost to it)
+        return LAND_SETTLE_S + speed_up_s + self.drop_m / self.descent_m_s
+
+
+def last_arrival(
+    flight: FlightPlan, altitude_m: float, limits: dict[str, CopterLimits] | None = None
+) -> float:
     """The passing order kept, landings from `altitude_m` (0: no landing)."""
     timed = fly(
-        flight.paths, flight.leg_speeds, flight.limits, flight.order,
+        flight.paths, flight.leg_speeds, limits or flight.limits, flight.order,
         altitude_m=altitude_m, stops=flight.stops,
     )  # fmt: skip
     return max(t.arrival_s for t in timed.values())
+
+
+def two_r_down(flight: FlightPlan) -> dict[str, CopterLimits]:
+    """Each vehicle's limits, its landing out of the way 2R down (its own and the widest
+    other's radius, as the plan keeps them apart)."""
+    widest = max(p.radius_m for p in flight.paths.values())
+    return {
+        uav: OutOfTheWayBelow(
+            **dataclasses.asdict(limits), drop_m=flight.paths[uav].radius_m + widest
+        )
+        for uav, limits in flight.limits.items()
+    }
 
 
 def measure(name: str, scenario: Scenario, speeds: tuple[float, ...]) -> list[Row]:
@@ -79,6 +113,7 @@ def measure(name: str, scenario: Scenario, speeds: tuple[float, ...]) -> list[Ro
             "plan": max(float(p.arrive[-1]) for p in flight.paths.values()),
             "alone": max(t.arrival_s for t in alone.values()),
             "order, no landing": last_arrival(flight, 0.0),
+            "order, 2R down": last_arrival(flight, flight.altitude_m, two_r_down(flight)),
             "product": flight.duration_s,
         }
         rows.append(Row(name, len(scenario.uavs), speed, seconds))
