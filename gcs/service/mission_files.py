@@ -1,15 +1,17 @@
-"""A plan's mission files, made once per plan and options, off the event loop.
+"""A plan's mission files and timing, made once per plan and options, off the event loop.
 
 `GET /plans/{id}/missions`, `.../{uav}.plan` and `.waypoints` answer with what a flight of
 the plan would upload: the plan paced at a speed (`flight_plan`: seconds of work for a
-large plan) and rendered as JSON and files. Anyone may read them, so none of that work
-may run on the event loop, where the operator's commands and the flight's followers run,
-and many readers may not multiply it:
+large plan) and rendered as JSON and files; `GET /plans/{id}/timing` with how long that
+flight takes when nothing goes wrong (the timed flight: a simulation of every vehicle,
+made only when asked for). Anyone may read them, so none of that work may run on the
+event loop, where the operator's commands and the flight's followers run, and many
+readers may not multiply it:
 
-- the plan and its scenario are validated, the missions made and every answer rendered
-  in a worker thread, once: the bytes of every answer are kept, per plan and options
-  (a plan never changes once stored), in a small LRU (`MAX_ENTRIES` combinations and
-  `MAX_BYTES` of answers);
+- the plan and its scenario are validated, the missions made (or the flight timed) and
+  every answer rendered in a worker thread, once: the bytes of every answer are kept, per
+  plan, options and kind, in a small LRU (`MAX_ENTRIES` combinations and `MAX_BYTES` of
+  answers; a plan never changes once stored);
 - identical requests while it is made wait for that one computation (single flight);
 - at most `CONCURRENCY` computations run at once (a thread holding the GIL slows the
   loop: several would crowd it out); the others wait their turn without a thread;
@@ -26,17 +28,19 @@ from __future__ import annotations
 
 import asyncio
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Any, Literal
+from typing import Any, Literal, Protocol, TypeVar
 
 from prometheus_client import Counter, Gauge
-from pydantic import BaseModel, TypeAdapter
+from pydantic import BaseModel, Field, TypeAdapter
 from sqlalchemy import select
 
 from gcs.mavlink.mission_item import Autopilot, Mission
 from gcs.mission.fence import fence_of
 from gcs.mission.files import plan_text, waypoints_text
-from gcs.mission.flight_plan import UnsafeSpeed, flight_plan
+from gcs.mission.flight_plan import FlightPlan, UnsafeSpeed, flight_plan
+from gcs.mission.flight_timing import FlightStuck
 from gcs.mission.geographic import load_geographic
 from gcs.service.metrics import ServiceMetrics
 from gcs.service.storage import NotFound, PlanRepository, ScenarioRepository
@@ -74,6 +78,24 @@ class MissionOut(BaseModel):
 MISSIONS = TypeAdapter(list[MissionOut])
 
 
+class UavTimingOut(BaseModel):
+    uav_id: str
+    arrival_s: float = Field(description="over its goal, seconds after the common start")
+    lets_pass_first: list[str] = Field(
+        description="the UAVs the passing order makes it wait for on the way"
+    )
+
+
+class TimingOut(BaseModel):
+    """The flight of a plan at a speed when nothing goes wrong, as the ground station
+    times it (each vehicle's S-curves, corners and stops, the passing order's waits, a
+    lander in the others' way until it is down): the schedule flights are measured by."""
+
+    max_speed_m_s: float
+    duration_s: float = Field(description="from the common start to the last arrival")
+    uavs: list[UavTimingOut]
+
+
 def mission_out(uav_id: str, mission: Mission) -> MissionOut:
     items = [
         MissionItemOut(
@@ -106,6 +128,16 @@ class Shape:
         return repr(tuple(asdict(self).values()))
 
 
+class Made(Protocol):
+    @property
+    def size(self) -> int: ...
+
+
+M = TypeVar("M", bound=Made)
+Maker = Callable[[dict[str, Any], dict[str, Any], Shape, dict[str, Any] | None], M]
+"""A kind of answer made on a worker thread: (plan, scenario, shape, geographic)."""
+
+
 @dataclass(frozen=True)
 class Answers:
     """Every answer of one plan at one shape, rendered."""
@@ -128,12 +160,65 @@ def answers(
 ) -> Answers:
     """The work itself, on a worker thread: validation, pacing and rendering; the `.plan`
     files of a geographic scenario carry its fence and rally points."""
-    scenario = Scenario(**scenario_body)
     fence = fence_of(load_geographic(geographic)) if geographic else None
+    flight = _paced(plan_body, scenario_body, shape)
+    missions = flight.missions
+    return Answers(
+        missions=MISSIONS.dump_json([mission_out(u, m) for u, m in missions.items()]),
+        plans={
+            u: plan_text(m, flight.notes(u), fence, shape.altitude_m).encode()
+            for u, m in missions.items()
+        },
+        waypoints={u: waypoints_text(m).encode() for u, m in missions.items()},
+    )
+
+
+@dataclass(frozen=True)
+class Timing:
+    """`GET /plans/{id}/timing`'s answer, rendered."""
+
+    body: bytes
+
+    @property
+    def size(self) -> int:
+        return len(self.body)
+
+
+def timing(
+    plan_body: dict[str, Any],
+    scenario_body: dict[str, Any],
+    shape: Shape,
+    geographic: dict[str, Any] | None = None,
+) -> Timing:
+    """The flight timed, on a worker thread, with ArduCopter's default limits (a flight
+    times it again with its vehicles' own). A passing order that cannot be kept to the
+    end is a 409, as at upload."""
+    flight = _paced(plan_body, scenario_body, shape)
+    try:
+        timed = flight.timed
+    except FlightStuck as exc:
+        raise UnflyablePlan(f"its passing order cannot be kept ({exc}): plan it again") from None
+    uavs = [
+        UavTimingOut(
+            uav_id=uav,
+            arrival_s=round(t.arrival_s, 2),
+            lets_pass_first=sorted({w.leader for w in flight.order.waits.get(uav, [])}),
+        )
+        for uav, t in timed.items()
+    ]
+    out = TimingOut(
+        max_speed_m_s=flight.speed_m_s, duration_s=round(flight.duration_s, 2), uavs=uavs
+    )
+    return Timing(out.model_dump_json().encode())
+
+
+def _paced(plan_body: dict[str, Any], scenario_body: dict[str, Any], shape: Shape) -> FlightPlan:
+    """The plan paced at the shape's speed: UnsafeSpeed (422) or UnflyablePlan (409)."""
+    scenario = Scenario(**scenario_body)
     plan = Plan(**plan_body)
     autopilot = Autopilot[shape.autopilot.upper()]
     try:
-        flight = flight_plan(
+        return flight_plan(
             plan,
             scenario,
             dict.fromkeys((u.id for u in plan.uavs), autopilot),
@@ -146,22 +231,13 @@ def answers(
         raise
     except ValueError as exc:
         raise UnflyablePlan(str(exc)) from exc
-    missions = flight.missions
-    return Answers(
-        missions=MISSIONS.dump_json([mission_out(u, m) for u, m in missions.items()]),
-        plans={
-            u: plan_text(m, flight.notes(u), fence, shape.altitude_m).encode()
-            for u, m in missions.items()
-        },
-        waypoints={u: waypoints_text(m).encode() for u, m in missions.items()},
-    )
 
 
 @dataclass
 class _Entry:
     plan_id: str
     scenario_id: str
-    made: asyncio.Task[Answers]
+    made: asyncio.Task[Any]  # of the kind's Made
     size: int = 0
 
 
@@ -185,8 +261,8 @@ class MissionFiles:
         registry = metrics.registry if metrics is not None else None
         self.computations = Counter(
             "mvo_gcs_mission_computations",
-            "plans made into missions for the mission endpoints (once per plan and options "
-            "while cached), by outcome",
+            "plans made into missions or timed for the mission and timing endpoints (once "
+            "per plan, options and kind while cached), by outcome",
             ["outcome"],
             registry=registry,
         )
@@ -203,15 +279,19 @@ class MissionFiles:
 
     async def missions(self, plan_id: str, shape: Shape) -> bytes:
         """`GET /plans/{id}/missions`: JSON, one MISSION_ITEM_INT list per UAV."""
-        return (await self._answers(plan_id, shape)).missions
+        return (await self._kept(plan_id, shape, answers)).missions
 
     async def plan_file(self, plan_id: str, uav_id: str, shape: Shape) -> bytes:
         """The UAV's QGroundControl `.plan`."""
-        return _of_uav((await self._answers(plan_id, shape)).plans, plan_id, uav_id)
+        return _of_uav((await self._kept(plan_id, shape, answers)).plans, plan_id, uav_id)
 
     async def waypoints_file(self, plan_id: str, uav_id: str, shape: Shape) -> bytes:
         """The UAV's `QGC WPL 110` file."""
-        return _of_uav((await self._answers(plan_id, shape)).waypoints, plan_id, uav_id)
+        return _of_uav((await self._kept(plan_id, shape, answers)).waypoints, plan_id, uav_id)
+
+    async def timing(self, plan_id: str, shape: Shape) -> bytes:
+        """`GET /plans/{id}/timing`: JSON, the flight at the shape's speed, timed."""
+        return (await self._kept(plan_id, shape, timing)).body
 
     def forget(self, *plan_ids: str, scenario_id: str | None = None) -> None:
         """Drop the entries of deleted plans (or of every plan of a deleted scenario)."""
@@ -232,32 +312,34 @@ class MissionFiles:
         self._entries.clear()
         self.cached.set(0)
 
-    async def _answers(self, plan_id: str, shape: Shape) -> Answers:
+    async def _kept(self, plan_id: str, shape: Shape, maker: Maker[M]) -> M:
+        """The maker's answer for the plan at the shape: kept, being made, or made now."""
         try:
             scenario_id = await self.plans.db.run(_scenario_of, self.plans, plan_id)
         except NotFound:
             self.forget(plan_id)  # deleted while it was being made: nothing kept of it
             raise
-        key = (plan_id, shape.key())
+        key = (plan_id, f"{maker.__name__}{shape.key()}")
         entry = self._entries.get(key)
         if entry is None:
-            made = asyncio.ensure_future(self._make(plan_id, scenario_id, shape))
+            made = asyncio.ensure_future(self._make(plan_id, scenario_id, shape, maker))
             entry = self._entries[key] = _Entry(plan_id, scenario_id, made)
             made.add_done_callback(lambda task: self._made(key, entry, task))
             self._evict(keep=key)
         else:
             self._entries.move_to_end(key)
         # shielded: a reader who gives up does not cancel the others' computation
-        return await asyncio.shield(entry.made)
+        answer: M = await asyncio.shield(entry.made)
+        return answer
 
-    async def _make(self, plan_id: str, scenario_id: str, shape: Shape) -> Answers:
+    async def _make(self, plan_id: str, scenario_id: str, shape: Shape, maker: Maker[M]) -> M:
         async with self._running:
             plan = await self.plans.get(plan_id)
             scenario = await self.scenarios.get(scenario_id)
             self.running.inc()
             try:
                 made = await asyncio.to_thread(
-                    answers, plan.body, scenario.body, shape, scenario.geographic
+                    maker, plan.body, scenario.body, shape, scenario.geographic
                 )
             except (UnflyablePlan, UnsafeSpeed) as exc:
                 self.computations.labels(type(exc).__name__).inc()
@@ -270,7 +352,7 @@ class MissionFiles:
             self.computations.labels("made").inc()
             return made
 
-    def _made(self, key: tuple[str, str], entry: _Entry, task: asyncio.Task[Answers]) -> None:
+    def _made(self, key: tuple[str, str], entry: _Entry, task: asyncio.Task[Any]) -> None:
         if self._entries.get(key) is not entry:
             return  # forgotten or evicted meanwhile
         if task.cancelled():

@@ -260,3 +260,61 @@ async def test_at_most_one_computation_runs_at_once(
     assert [a.status_code for a in answers] == [200] * len(speeds)
     assert counted.calls == len(speeds)
     assert counted.peak == 1
+
+
+@pytest.mark.virtual_clock
+async def test_the_timing_at_a_speed_is_the_flights_own_and_is_kept(
+    gcs: InProcessService, computations: Callable[..., Computations]
+) -> None:
+    """`GET /plans/{id}/timing`: the flight a plan makes at the options, timed as flights
+    are (each arrival, whom each UAV lets pass first), kept like the mission files but
+    apart from them (the missions alone do not time most flights)."""
+    _, pid = await planned(gcs)
+    scenario, plan = Scenario(**CASE_VI), await stored_plan(gcs, pid)
+    autopilots = dict.fromkeys((u.id for u in plan.uavs), Autopilot.ARDUPILOT)
+    counted = computations()
+    for speed in (5.0, 10.0):
+        flight = ORIGINAL(plan, scenario, autopilots, max_speed_m_s=speed)
+        counted.calls = 0
+        path = f"/plans/{pid}/timing?max_speed_m_s={speed:g}"
+        answers = await asyncio.gather(*(gcs.client.get(path) for _ in range(3)))
+        assert [a.status_code for a in answers] == [200] * 3, answers[0].text
+        assert counted.calls == 1  # three readers, one computation
+        body = answers[0].json()
+        assert body["max_speed_m_s"] == speed
+        assert body["duration_s"] == pytest.approx(flight.duration_s, abs=0.01)
+        arrivals = {u["uav_id"]: u["arrival_s"] for u in body["uavs"]}
+        timed = {uav: t.arrival_s for uav, t in flight.timed.items()}
+        assert arrivals == pytest.approx(timed, abs=0.01)
+        assert max(arrivals.values()) == body["duration_s"]
+        leaders = {u["uav_id"]: u["lets_pass_first"] for u in body["uavs"]}
+        assert leaders == {
+            uav: sorted({w.leader for w in flight.order.waits.get(uav, [])}) for uav in timed
+        }
+        assert any(leaders.values())  # case VI: someone lets another pass first
+        missions = await gcs.client.get(f"/plans/{pid}/missions?max_speed_m_s={speed:g}")
+        assert missions.status_code == 200
+        assert counted.calls == 2  # the missions are made apart from the timing
+        assert (await gcs.client.get(path)).content == answers[0].content
+        assert counted.calls == 2  # kept
+
+
+@pytest.mark.virtual_clock
+async def test_the_timing_refuses_as_the_missions_do(gcs: InProcessService) -> None:
+    """422 for a speed the plan cannot be kept safe at (with the highest one it can) or an
+    invalid option, 409 for a plan that cannot be flown, 404 for no such plan."""
+    _, pid = await planned(gcs)
+    _, no_origin = await planned(gcs, {**CASE_VI, "origin": None})
+    fast = await gcs.client.get(f"/plans/{pid}/timing?max_speed_m_s=20")
+    missions = await gcs.client.get(f"/plans/{pid}/missions?max_speed_m_s=20")
+    assert fast.status_code == missions.status_code == 422
+    assert fast.json() == missions.json()
+    assert fast.json()["highest_safe_speed_m_s"] < 20
+    unflyable = await gcs.client.get(f"/plans/{no_origin}/timing")
+    assert unflyable.status_code == 409
+    assert unflyable.json() == {"detail": "scenario 'case-6' has no origin: it cannot be flown"}
+    missing = await gcs.client.get("/plans/nosuchplan/timing")
+    assert missing.status_code == 404
+    assert missing.json() == {"detail": "no plan with id 'nosuchplan'"}
+    invalid = await gcs.client.get(f"/plans/{pid}/timing?max_speed_m_s=0")
+    assert invalid.status_code == 422 and "max_speed_m_s" in invalid.text

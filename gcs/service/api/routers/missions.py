@@ -1,10 +1,15 @@
-"""A plan's MAVLink missions: the items per UAV, and QGroundControl / ArduPilot files.
+"""A plan's MAVLink missions: the items per UAV, and QGroundControl / ArduPilot files;
+and the flight they make, timed.
 
 They are the missions a flight of the plan would upload, timed the same way (the plan
 at `max_speed_m_s` for its fastest UAV, corners within `turn_radius_m`). What a file
 cannot carry is the passing order, which only the ground station keeps while they fly:
 a `.plan` says in its notes whom its UAV must let pass first. What a flight actually
 uploaded is at `/flights/{id}/missions/{uav}.plan`.
+
+The timing (`/plans/{id}/timing`) is the flight at those options when nothing goes
+wrong: a faster cruise is not always a sooner arrival (each wait of the passing order is
+a longer stop and start at speed), so an operator can compare a few speeds before flying.
 
 They are made once per plan and options, off the event loop, and kept
 (`gcs.service.mission_files`): many readers cost one computation.
@@ -24,11 +29,12 @@ from gcs.service.mission_files import (
     MissionItemOut,
     MissionOut,
     Shape,
+    TimingOut,
     UnflyablePlan,
     mission_out,
 )
 
-__all__ = ["MissionItemOut", "MissionOut", "UnflyablePlan", "mission_out", "router"]
+__all__ = ["MissionItemOut", "MissionOut", "TimingOut", "UnflyablePlan", "mission_out", "router"]
 
 router = APIRouter(tags=["missions"])
 ANSWERS: dict[int | str, dict[str, Any]] = {
@@ -63,6 +69,20 @@ Options = Annotated[MissionOptions, Query()]
 async def get_missions(plan_id: str, files: MissionFilesDep, options: Options) -> Response:
     """One MISSION_ITEM_INT list per UAV (ArduPilot: item 0 is home)."""
     body = await files.missions(plan_id, options.shape())
+    return Response(body, media_type="application/json")
+
+
+@router.get(
+    "/plans/{plan_id}/timing",
+    operation_id="planTiming",
+    response_model=TimingOut,
+    responses=ANSWERS,
+)
+async def get_timing(plan_id: str, files: MissionFilesDep, options: Options) -> Response:
+    """How long a flight of the plan at these options takes when nothing goes wrong, with
+    ArduCopter's default limits (a flight times it again with its vehicles' own): each
+    UAV's arrival over its goal and whom it lets pass first on the way."""
+    body = await files.timing(plan_id, options.shape())
     return Response(body, media_type="application/json")
 
 
