@@ -6,7 +6,9 @@ with its fastest UAV at `--max-speed` (5 m/s by default), keeping its passing or
 before anything is armed, naming the highest one it can. At the end the separation
 actually flown, from the vehicles' reported positions, is printed against the plan's
 2R. Scenario, plan and speed errors exit 2, a vehicle failure or a flown separation
-under 2R exits 1.
+under 2R exits 1. `--dry-run` stops before the upload: the speed checked against the
+vehicles' own limits and the flight's timing printed, nothing uploaded or armed (a faster
+cruise is not always sooner, so a few speeds can be compared first).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from gcs.mission.flight_plan import (
     UnsafeSpeed,
     flight_plan,
 )
+from gcs.mission.flight_timing import FlightStuck
 from gcs.mission.motion import DEFAULT_SPEED_M_S
 from planner.model.plan import Plan
 from planner.model.scenario import Scenario
@@ -83,6 +86,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "(default: %(default)s)",
     )
     parser.add_argument("--connect-timeout", type=float, default=15.0)
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check the speed with the vehicles' own limits and print the flight's timing "
+        "(each UAV's arrival, whom it lets pass first); upload and arm nothing",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -116,9 +125,12 @@ async def _fly(scenario: Scenario, plan: Plan, urls: list[str], args: argparse.N
     try:
         try:
             flight = await _flight(plan, scenario, links, args)
-        except UnsafeSpeed as exc:
-            print(f"mvo-gcs fly: {exc}; nothing was armed", file=sys.stderr)
+        except (UnsafeSpeed, FlightStuck) as exc:
+            print(f"mvo-gcs fly: {_refusal(exc)}; nothing was armed", file=sys.stderr)
             return 2
+        if args.dry_run:
+            _print_timing(flight)
+            return 0
         fleet = Fleet(links, flight, settings=FleetSettings(fallback=Fallback(args.on_failure)))
         display = ProgressDisplay()
         watcher = asyncio.create_task(_show(fleet, display))
@@ -163,12 +175,28 @@ async def _flight(
         turn_radius_m=args.turn_radius,
         limits=dict(zip(links, read, strict=True)),
     )
+    what = "timed" if args.dry_run else "flying"
     print(
-        f"flying at up to {flight.speed_m_s:g} m/s, keeping the plan's passing order: "
+        f"{what} at up to {flight.speed_m_s:g} m/s, keeping the plan's passing order: "
         f"{flight.duration_s:.0f} s to the last goal when nothing goes wrong",
         flush=True,
     )
     return flight
+
+
+def _refusal(exc: UnsafeSpeed | FlightStuck) -> str:
+    if isinstance(exc, UnsafeSpeed):
+        return str(exc)
+    return f"these vehicles cannot keep the plan's passing order ({exc}): plan it again"
+
+
+def _print_timing(flight: FlightPlan) -> None:
+    """Each UAV's arrival over its goal and whom it lets pass first on the way."""
+    for uav, timed in flight.timed.items():
+        leaders = sorted({w.leader for w in flight.order.waits.get(uav, [])})
+        after = f", letting {', '.join(leaders)} pass first" if leaders else ""
+        print(f"{uav}: over its goal at {timed.arrival_s:.1f} s{after}")
+    print("dry run: nothing was uploaded or armed")
 
 
 async def _show(fleet: Fleet, display: ProgressDisplay) -> None:

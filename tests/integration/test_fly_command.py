@@ -18,28 +18,29 @@ import pytest
 from gcs.cli.main import main
 from gcs.mavlink import client
 from planner.cases import load_case
-from sitl_mock import Simulator
+from sitl_mock.snapshot import VehicleState
 from sitl_mock.virtual_time import run_virtual
 from tests.inprocess.vehicles import SimulatedVehicles
 
 from .flights import vehicles_at_starts
 
 
-def test_fly_plans_flies_and_reports_the_separation(
-    capsys, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def fly_case_1(monkeypatch: pytest.MonkeyPatch, *options: str) -> tuple[int, list[VehicleState]]:
+    """`mvo-gcs fly case-1` on mock vehicles on the virtual clock: its exit code, and each
+    vehicle's state as the command left it."""
     configs = [  # on SITL's nominal ports, 5760 + 10 (k - 1)
         replace(c, transport="memory", port=5750 + 10 * c.sysid)
         for c in vehicles_at_starts(load_case("case-1"))
     ]
     vehicles = SimulatedVehicles()
-    started: list[Simulator] = []
+    states: list[VehicleState] = []
 
     async def with_vehicles(command: Coroutine[Any, Any, int]) -> int:
-        started.append(await vehicles.start(configs))
+        sim = await vehicles.start(configs)
         try:
             return await command
         finally:
+            states.extend(sim.state(sysid) for sysid in sim.sysids)
             await vehicles.stop()
 
     urls = ",".join(f"tcp:127.0.0.1:{c.port}" for c in configs)
@@ -47,12 +48,33 @@ def test_fly_plans_flies_and_reports_the_separation(
     # are the seams (a test on the old sockets would fail to connect, not pass unseen).
     monkeypatch.setattr(asyncio, "run", lambda command: run_virtual(with_vehicles(command)))
     monkeypatch.setattr(client, "connect", functools.partial(client.connect, opener=vehicles.open))
-    code = main(["fly", "case-1", "--vehicles", urls, "--altitude", "10"])
-    assert started, "the command's flight did not run on the virtual clock"
+    code = main(["fly", "case-1", "--vehicles", urls, "--altitude", "10", *options])
+    assert states, "the command's flight did not run on the virtual clock"
+    return code, states
+
+
+def test_fly_plans_flies_and_reports_the_separation(
+    capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    code, states = fly_case_1(monkeypatch)
     out = capsys.readouterr().out
     assert code == 0, out
     assert "2 missions started" in out
     assert "separation flown:" in out and "required 2R: 6.00 m" in out
+    assert all(s.mission_total > 0 and not s.armed for s in states)  # flown, landed
+
+
+def test_a_dry_run_prints_the_timing_and_uploads_and_arms_nothing(
+    capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    code, states = fly_case_1(monkeypatch, "--dry-run", "--max-speed", "10")
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "timed at up to 10 m/s" in out and "s to the last goal" in out
+    assert "uav1: over its goal at " in out and "uav2: over its goal at " in out
+    assert "dry run: nothing was uploaded or armed" in out
+    assert "missions started" not in out
+    assert all(s.mission_total == 0 and not s.armed for s in states)
 
 
 def test_fly_refuses_a_vehicle_count_that_does_not_match(capsys) -> None:
