@@ -17,6 +17,8 @@ import pytest
 
 from gcs.cli.main import main
 from gcs.mavlink import client
+from gcs.mission.flight_plan import FlightPlan
+from gcs.mission.flight_timing import FlightStuck
 from planner.cases import load_case
 from sitl_mock.snapshot import VehicleState
 from sitl_mock.virtual_time import run_virtual
@@ -74,6 +76,24 @@ def test_a_dry_run_prints_the_timing_and_uploads_and_arms_nothing(
     assert "uav1: over its goal at " in out and "uav2: over its goal at " in out
     assert "dry run: nothing was uploaded or armed" in out
     assert "missions started" not in out
+    assert all(s.mission_total == 0 and not s.armed for s in states)
+
+
+def test_a_passing_order_the_vehicles_cannot_keep_is_refused_before_anything_arms(
+    capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Fuzzed flight 13783's plan, whose timing found its order stuck, was a 500 from the
+    service; from the terminal it was a traceback. Now it is exit 2, as a speed is."""
+
+    def stuck(flight: FlightPlan) -> float:
+        raise FlightStuck("['uav1', 'uav2'] stopped moving at 80 s of the simulated flight")
+
+    monkeypatch.setattr(FlightPlan, "duration_s", property(stuck))
+    code, states = fly_case_1(monkeypatch)
+    captured = capsys.readouterr()
+    assert code == 2, captured.out
+    assert "cannot keep the plan's passing order" in captured.err
+    assert "nothing was armed" in captured.err
     assert all(s.mission_total == 0 and not s.armed for s in states)
 
 
