@@ -193,7 +193,7 @@ def _refusal(exc: UnsafeSpeed | FlightStuck) -> str:
 def _print_timing(flight: FlightPlan) -> None:
     """Each UAV's arrival over its goal and whom it lets pass first on the way."""
     for uav, timed in flight.timed.items():
-        leaders = sorted({w.leader for w in flight.order.waits.get(uav, [])})
+        leaders = flight.leaders(uav)
         after = f", letting {', '.join(leaders)} pass first" if leaders else ""
         print(f"{uav}: over its goal at {timed.arrival_s:.1f} s{after}")
     print("dry run: nothing was uploaded or armed")

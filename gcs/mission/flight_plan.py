@@ -118,10 +118,15 @@ class FlightPlan:
         k = int(np.searchsorted(path.s, along_m, side="right")) - 1
         return float(legs[min(max(k, 0), len(legs) - 1)])
 
+    def leaders(self, uav_id: str) -> list[str]:
+        """The UAVs the passing order makes this one let pass first, each once (it may
+        meet one of them twice)."""
+        return sorted({w.leader for w in self.order.waits.get(uav_id, [])})
+
     def notes(self, uav_id: str) -> str:
         """What the UAV's mission file cannot say by itself: the passing order it keeps
         only when the ground station flies it with the others."""
-        leaders = sorted(w.leader for w in self.order.waits.get(uav_id, []))
+        leaders = self.leaders(uav_id)
         others = len(self.missions) - 1
         timing = (
             f"mvo-gcs: {uav_id}'s mission, timed for {self.speed_m_s:g} m/s with its "

@@ -202,7 +202,7 @@ def timing(
         UavTimingOut(
             uav_id=uav,
             arrival_s=round(t.arrival_s, 2),
-            lets_pass_first=sorted({w.leader for w in flight.order.waits.get(uav, [])}),
+            lets_pass_first=flight.leaders(uav),
         )
         for uav, t in timed.items()
     ]
