@@ -39,7 +39,11 @@ __all__ = ["MissionItemOut", "MissionOut", "TimingOut", "UnflyablePlan", "missio
 router = APIRouter(tags=["missions"])
 ANSWERS: dict[int | str, dict[str, Any]] = {
     404: {"model": Problem, "description": "no such plan or UAV"},
-    409: {"model": Problem, "description": "the plan cannot be flown (infeasible, no origin)"},
+    409: {
+        "model": Problem,
+        "description": "the plan cannot be flown (infeasible, no origin; for its timing, a "
+        "passing order that cannot be kept to the end)",
+    },
     **UNSAFE_SPEED,
 }
 
