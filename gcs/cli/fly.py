@@ -8,7 +8,9 @@ actually flown, from the vehicles' reported positions, is printed against the pl
 2R. Scenario, plan and speed errors exit 2, a vehicle failure or a flown separation
 under 2R exits 1. `--dry-run` stops before the upload: the speed checked against the
 vehicles' own limits and the flight's timing printed, nothing uploaded or armed (a faster
-cruise is not always sooner, so a few speeds can be compared first).
+cruise is not always sooner, so a few speeds can be compared first). With
+`--candidates N` the scenario is planned with N seeds and the plan the vehicles fly
+soonest at that speed is flown (`gcs.mission.flight_choice`).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from gcs.cli.planning_options import (
     ScenarioFileError,
     add_planning_arguments,
     planner_settings,
+    positive_int,
     read_scenario,
 )
 from gcs.cli.progress_display import ProgressDisplay
@@ -30,6 +33,7 @@ from gcs.mavlink import client
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import VehicleLink
 from gcs.mission.build import DEFAULT_ALTITUDE_M
+from gcs.mission.flight_choice import Choice, soonest
 from gcs.mission.flight_plan import (
     DEFAULT_CLEARANCE_M,
     TURN_RADIUS_M,
@@ -85,6 +89,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="metres beyond 2R the plan keeps between UAVs, room to stray in flight "
         "(default: %(default)s)",
     )
+    parser.add_argument(
+        "--candidates",
+        type=positive_int,
+        default=1,
+        metavar="N",
+        help="plan with N seeds (--seed and the next ones, sharing --time-budget) and fly "
+        "the plan the vehicles reach their goals soonest with, timed at --max-speed "
+        "(default: %(default)s)",
+    )
     parser.add_argument("--connect-timeout", type=float, default=15.0)
     parser.add_argument(
         "--dry-run",
@@ -103,40 +116,48 @@ def run(args: argparse.Namespace) -> int:
         )
     if scenario.origin is None:
         raise ScenarioFileError(f"scenario {scenario.name} has no origin: it cannot be flown")
-    plan = _plan(scenario, args)
-    if not plan.feasible:
-        raise ScenarioFileError(f"no safe plan for {scenario.name}: {plan.conflicts[:1]}")
+    plans = _plans(scenario, args)
+    if not any(plan.feasible for plan in plans):
+        raise ScenarioFileError(f"no safe plan for {scenario.name}: {plans[0].conflicts[:1]}")
     try:
-        return asyncio.run(_fly(scenario, plan, urls, args))
+        return asyncio.run(_fly(scenario, plans, urls, args))
     except GcsError as exc:
         print(f"mvo-gcs fly: {exc}", file=sys.stderr)
         return 1
 
 
-def _plan(scenario: Scenario, args: argparse.Namespace) -> Plan:
+def _plans(scenario: Scenario, args: argparse.Namespace) -> list[Plan]:
+    """One plan per seed, from `--seed` on."""
     from planner.pipeline import plan
 
-    print(f"planning {scenario.name} with {args.algorithm} ...", flush=True)
-    return plan(scenario.with_clearance(args.clearance), planner_settings(args))
+    seeds = f"{args.candidates} seeds" if args.candidates > 1 else f"seed {args.seed}"
+    print(f"planning {scenario.name} with {args.algorithm} ({seeds}) ...", flush=True)
+    settings = planner_settings(args)
+    widened = scenario.with_clearance(args.clearance)
+    return [plan(widened, settings.candidate(k, args.candidates)) for k in range(args.candidates)]
 
 
-async def _fly(scenario: Scenario, plan: Plan, urls: list[str], args: argparse.Namespace) -> int:
+async def _fly(
+    scenario: Scenario, plans: list[Plan], urls: list[str], args: argparse.Namespace
+) -> int:
     links = await _connect(scenario, urls, args.connect_timeout)
     try:
         try:
-            flight = await _flight(plan, scenario, links, args)
+            choice = await _flight(plans, scenario, links, args)
         except (UnsafeSpeed, FlightStuck) as exc:
             print(f"mvo-gcs fly: {_refusal(exc)}; nothing was armed", file=sys.stderr)
             return 2
         if args.dry_run:
-            _print_timing(flight)
+            _print_timing(choice.flight)
             return 0
-        fleet = Fleet(links, flight, settings=FleetSettings(fallback=Fallback(args.on_failure)))
+        fleet = Fleet(
+            links, choice.flight, settings=FleetSettings(fallback=Fallback(args.on_failure))
+        )
         display = ProgressDisplay()
         watcher = asyncio.create_task(_show(fleet, display))
         report = await fleet.fly()
         await asyncio.wait({watcher}, timeout=5.0)
-        return _summary(report, plan, scenario)
+        return _summary(report, choice.plan, scenario)
     finally:
         await asyncio.gather(*(link.close() for link in links.values()))
 
@@ -161,27 +182,40 @@ async def _connect(scenario: Scenario, urls: list[str], timeout: float) -> dict[
 
 
 async def _flight(
-    plan: Plan, scenario: Scenario, links: dict[str, VehicleLink], args: argparse.Namespace
-) -> FlightPlan:
-    """The plan at `--max-speed` with each vehicle's own limits, timed and ordered."""
+    plans: list[Plan], scenario: Scenario, links: dict[str, VehicleLink], args: argparse.Namespace
+) -> Choice:
+    """The plan flown soonest at `--max-speed` with each vehicle's own limits, timed and
+    ordered."""
     read = await asyncio.gather(*(read_limits(link) for link in links.values()))
-    flight = flight_plan(
-        plan,
-        scenario,
-        {uav: link.autopilot for uav, link in links.items()},
-        altitude_m=args.altitude,
-        finish=args.finish,
-        max_speed_m_s=args.max_speed,
-        turn_radius_m=args.turn_radius,
-        limits=dict(zip(links, read, strict=True)),
-    )
+    limits = dict(zip(links, read, strict=True))
+    autopilots = {uav: link.autopilot for uav, link in links.items()}
+
+    def fly_as(plan: Plan) -> FlightPlan:
+        return flight_plan(
+            plan,
+            scenario,
+            autopilots,
+            altitude_m=args.altitude,
+            finish=args.finish,
+            max_speed_m_s=args.max_speed,
+            turn_radius_m=args.turn_radius,
+            limits=limits,
+        )
+
+    choice = soonest(plans, fly_as)
+    if len(plans) > 1:
+        print(f"candidates timed at {args.max_speed:g} m/s:", flush=True)
+        for trial in choice.trials:
+            chosen = " (flown)" if trial.seed == choice.plan.seed else ""
+            print(f"  {trial.describe()}{chosen}", flush=True)
+    flight = choice.flight
     what = "timed" if args.dry_run else "flying"
     print(
         f"{what} at up to {flight.speed_m_s:g} m/s, keeping the plan's passing order: "
         f"{flight.duration_s:.0f} s to the last goal when nothing goes wrong",
         flush=True,
     )
-    return flight
+    return choice
 
 
 def _refusal(exc: UnsafeSpeed | FlightStuck) -> str:

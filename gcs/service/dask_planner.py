@@ -33,7 +33,13 @@ import uuid
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from gcs.service.planning_pool import JobProgress, PlanCancelled, ProgressSink, run_plan
+from gcs.service.planning_pool import (
+    JobProgress,
+    PlanCancelled,
+    ProgressSink,
+    SoonestOf,
+    run_plan,
+)
 from planner.pipeline import PlannerSettings
 
 log = logging.getLogger("mvo_gcs.planning")
@@ -93,7 +99,11 @@ class DaskPlanner:
         log.info("planning on the Dask cluster at %s", self.address)
 
     def submit(
-        self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings
+        self,
+        job_id: str,
+        scenario: dict[str, Any],
+        settings: PlannerSettings,
+        soonest_of: SoonestOf | None = None,
     ) -> asyncio.Future[dict[str, Any]]:
         """The plan's JSON when done; PlanCancelled if cancelled first; WorkerLost if its
         worker left the cluster meanwhile."""
@@ -105,6 +115,7 @@ class DaskPlanner:
             asdict(settings),
             self._topic,
             CANCEL_PREFIX + job_id,
+            soonest_of,
             key=KEY_PREFIX + job_id,
             pure=False,
             retries=0,
@@ -266,6 +277,7 @@ def plan_on_worker(
     settings: dict[str, Any],
     topic: str,
     cancel_event: str,
+    soonest_of: SoonestOf | None = None,
 ) -> dict[str, Any]:
     """The task on a Dask worker: `run_plan` with progress as events and the job's Event
     looked at every optimizer iteration."""
@@ -282,6 +294,7 @@ def plan_on_worker(
                 _Reports(worker, topic),
                 cancelled,
                 cancel_each_iteration=True,
+                soonest_of=soonest_of,
             )
         except PlanCancelled:
             raise PlanCancelled(job_id, cancelled.iterations_after) from None

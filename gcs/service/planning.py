@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gcs.service.metrics import ServiceMetrics
-from gcs.service.planning_pool import JobProgress, PlanCancelled, PlanRunner
+from gcs.service.planning_pool import JobProgress, PlanCancelled, PlanRunner, SoonestOf
 from gcs.service.states import JobState, StateConflict
 from gcs.service.storage import JobRepository, PlanRepository, ScenarioRepository
 from gcs.service.storage.tables import JobRow, PlanRow
@@ -42,32 +42,51 @@ class PlanningService:
     """Takes a queued job for this service (LeaseRepository.claim_job): run once."""
 
     async def request(
-        self, scenario_id: str, settings: PlannerSettings, wait_s: float, clearance_m: float = 0.0
+        self,
+        scenario_id: str,
+        settings: PlannerSettings,
+        wait_s: float,
+        clearance_m: float = 0.0,
+        soonest_of: tuple[int, float] | None = None,
     ) -> JobRow:
         """Start a job; return it once done or after `wait_s`, whichever comes first. The
-        plan keeps `clearance_m` beyond 2R between UAVs (room to stray in flight)."""
+        plan keeps `clearance_m` beyond 2R between UAVs (room to stray in flight). With
+        `soonest_of` (count, speed), that many seeds are planned and the plan flown soonest
+        at that speed is kept."""
         scenario = await self.scenarios.get(scenario_id)
+        chosen = {}
+        if soonest_of is not None:
+            chosen = {"candidates": soonest_of[0], "flight_speed_m_s": soonest_of[1]}
         job: JobRow = await self.jobs.add(
             JobRow(
                 scenario_id=scenario_id,
-                settings={**_settings_json(settings), "clearance_m": clearance_m},
+                settings={**_settings_json(settings), "clearance_m": clearance_m, **chosen},
             )
         )
         if self.claim is not None and not await self.claim(job.id):
             return job  # another service runs it
         planned = Scenario(**scenario.body).with_clearance(clearance_m).model_dump(mode="json")
-        task = asyncio.ensure_future(self._run(job.id, planned, settings))
+        choice = None
+        if soonest_of is not None:
+            choice = SoonestOf(*soonest_of, flown=scenario.body)
+        task = asyncio.ensure_future(self._run(job.id, planned, settings, choice))
         self._tasks[job.id] = task
         task.add_done_callback(lambda _: self._tasks.pop(job.id, None))
         await asyncio.wait({task}, timeout=wait_s)
         row: JobRow = await self.jobs.get(job.id)
         return row
 
-    async def _run(self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings) -> None:
+    async def _run(
+        self,
+        job_id: str,
+        scenario: dict[str, Any],
+        settings: PlannerSettings,
+        soonest_of: SoonestOf | None,
+    ) -> None:
         assert self.pool is not None, "the planning pool starts with the service"
         started = time.perf_counter()
         try:
-            body = await self.pool.submit(job_id, scenario, settings)
+            body = await self.pool.submit(job_id, scenario, settings, soonest_of)
         except (PlanCancelled, asyncio.CancelledError) as exc:
             if self._stopping:  # not the user's doing: as after a crash (Database.recover)
                 await self._set(job_id, J.INTERRUPTED, error="the service stopped")

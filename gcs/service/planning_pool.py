@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import multiprocessing
 import os
 import queue
@@ -29,8 +30,9 @@ from dataclasses import asdict, dataclass
 from multiprocessing.managers import SyncManager
 from typing import Any, Protocol
 
+from gcs.mission.flight_choice import soonest_by_default
 from gcs.service.parent_watch import exit_with_parent
-from planner.model.scenario import load_scenario
+from planner.model.scenario import Scenario, load_scenario
 from planner.pipeline import PlannerSettings, PlanProgress, plan
 
 PROGRESS_INTERVAL_S = 0.2
@@ -59,6 +61,17 @@ class JobProgress:
 ProgressSink = Callable[[JobProgress], None]
 
 
+@dataclass(frozen=True)
+class SoonestOf:
+    """Plan with `count` seeds (the settings' and the next ones) and keep the plan the
+    vehicles fly soonest at `speed_m_s` (`gcs.mission.flight_choice.soonest_by_default`),
+    timed on `flown`: the scenario as flown, without the clearance the plans are made with."""
+
+    count: int
+    speed_m_s: float
+    flown: dict[str, Any]
+
+
 class PlanRunner(Protocol):
     """Where plans are computed: worker processes (`PlanningPool`), a thread, or a Dask
     cluster (`DaskPlanner`). Started and shut down on the service's event loop."""
@@ -66,7 +79,11 @@ class PlanRunner(Protocol):
     async def start(self) -> None: ...
 
     def submit(
-        self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings
+        self,
+        job_id: str,
+        scenario: dict[str, Any],
+        settings: PlannerSettings,
+        soonest_of: SoonestOf | None = None,
     ) -> asyncio.Future[dict[str, Any]]: ...
 
     def cancel(self, job_id: str) -> None: ...
@@ -99,12 +116,17 @@ class PlanningPool:
         self._reader.start()
 
     def submit(
-        self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings
+        self,
+        job_id: str,
+        scenario: dict[str, Any],
+        settings: PlannerSettings,
+        soonest_of: SoonestOf | None = None,
     ) -> asyncio.Future[dict[str, Any]]:
         """The plan's JSON when the worker is done; PlanCancelled if cancelled first."""
         future = self._executor.submit(
-            run_plan, job_id, scenario, asdict(settings), self._progress, self._cancelled
-        )
+            run_plan, job_id, scenario, asdict(settings), self._progress, self._cancelled,
+            soonest_of=soonest_of,
+        )  # fmt: skip
         return asyncio.wrap_future(future)
 
     def cancel(self, job_id: str) -> None:
@@ -146,13 +168,19 @@ class ThreadPlanner:
         self._loop = asyncio.get_running_loop()
 
     def submit(
-        self, job_id: str, scenario: dict[str, Any], settings: PlannerSettings
+        self,
+        job_id: str,
+        scenario: dict[str, Any],
+        settings: PlannerSettings,
+        soonest_of: SoonestOf | None = None,
     ) -> asyncio.Future[dict[str, Any]]:
         assert self._loop is not None, "start() first"
         self._cancelled.setdefault(job_id, False)  # so that shutdown() can cancel it
-        return self._loop.run_in_executor(
-            self._threads, run_plan, job_id, scenario, asdict(settings), self, self._cancelled
-        )
+        work = functools.partial(
+            run_plan, job_id, scenario, asdict(settings), self, self._cancelled,
+            soonest_of=soonest_of,
+        )  # fmt: skip
+        return self._loop.run_in_executor(self._threads, work)
 
     def put(self, item: tuple[Any, ...]) -> None:
         """A progress report from the planning thread (the worker's queue interface)."""
@@ -184,13 +212,17 @@ def run_plan(
     cancelled: Any,
     *,
     cancel_each_iteration: bool = False,
+    soonest_of: SoonestOf | None = None,
 ) -> dict[str, Any]:
-    """The worker: plan one scenario, reporting progress and honouring cancellation.
+    """The worker: plan one scenario (or, `soonest_of`, several seeds of it, keeping the
+    plan flown soonest), reporting progress and honouring cancellation.
     `cancelled.get(job_id)` is asked with every report, or with every optimizer iteration
     when it is cheap (`cancel_each_iteration`: a local flag, as on a Dask worker)."""
     parsed = load_scenario(scenario)
     expected_runs = len(parsed.uavs)
+    count = soonest_of.count if soonest_of is not None else 1
     last = 0.0
+    candidate = 0
 
     def on_progress(p: PlanProgress) -> None:
         nonlocal last
@@ -206,10 +238,17 @@ def run_plan(
             percent = p.budget_percent
         else:
             percent = 100 * (p.run - 1 + p.iteration / p.iterations) / max(expected_runs, p.run)
+        percent = (100 * candidate + min(100.0, percent)) / count
         cost = p.best_cost if p.best_cost is not None else p.plan_cost
         progress.put((job_id, round(min(99.0, percent), 1), cost, p.run, p.uav, p.first_safe_s))
 
-    if cancelled.get(job_id):
-        raise PlanCancelled(job_id)
-    result = plan(parsed, PlannerSettings(**settings), progress=on_progress)
-    return result.model_dump(mode="json")
+    plans = []
+    for candidate in range(count):
+        if cancelled.get(job_id):
+            raise PlanCancelled(job_id)
+        seeded = PlannerSettings(**settings).candidate(candidate, count)
+        plans.append(plan(parsed, seeded, progress=on_progress))
+    if soonest_of is None:
+        return plans[0].model_dump(mode="json")
+    flown = Scenario(**soonest_of.flown)
+    return soonest_by_default(plans, flown, soonest_of.speed_m_s).model_dump(mode="json")

@@ -47,7 +47,8 @@ class Settings(BaseSettings):
     max_plan_evaluations: int = Field(
         default=2_000_000,
         ge=1,
-        description="cap on population x iterations of a request without a time budget",
+        description="cap on population x iterations x candidates of a request without a time "
+        "budget",
     )
     max_plan_seconds: float = Field(
         default=120.0, gt=0, description="cap on the time budget of one plan request"

@@ -70,6 +70,20 @@ class PlannerSettings:
         reproduction uses)."""
         return replace(self, time_budget_s=None, patience=None, improve_rounds=0, safe_start=False)
 
+    def candidate(self, k: int, of: int) -> PlannerSettings:
+        """The settings of the k-th (from 0) of `of` plans made in turn to choose from: the
+        next seed on, and its share of the time budget and of the safe start's limit."""
+
+        def share(seconds: float | None) -> float | None:
+            return None if seconds is None else seconds / of
+
+        return replace(
+            self,
+            seed=self.seed + k,
+            time_budget_s=share(self.time_budget_s),
+            safe_start_limit_s=share(self.safe_start_limit_s),
+        )
+
 
 @dataclass(frozen=True)
 class PlanProgress:

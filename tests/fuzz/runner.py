@@ -182,9 +182,14 @@ def _memoised_run_plan(
     cancelled: Any,
     *,
     cancel_each_iteration: bool = False,
+    soonest_of: planning_pool.SoonestOf | None = None,
 ) -> dict[str, Any]:
     """The planner, once per scenario and settings in this process (plans are pure; run_plan's
     signature, its progress and cancellation unused)."""
+    if soonest_of is not None:  # (the fuzzer's flights plan one seed)
+        return _plain_run_plan(
+            job_id, scenario, settings, progress, cancelled, soonest_of=soonest_of
+        )
     return _memo_plan(json.dumps(scenario, sort_keys=True), json.dumps(settings, sort_keys=True))
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import re
 from collections.abc import Coroutine
 from dataclasses import replace
 from typing import Any
@@ -76,6 +77,23 @@ def test_a_dry_run_prints_the_timing_and_uploads_and_arms_nothing(
     assert "uav1: over its goal at " in out and "uav2: over its goal at " in out
     assert "dry run: nothing was uploaded or armed" in out
     assert "missions started" not in out
+    assert all(s.mission_total == 0 and not s.armed for s in states)
+
+
+def test_with_candidates_every_seed_is_timed_and_the_soonest_flown(
+    capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    code, states = fly_case_1(monkeypatch, "--dry-run", "--candidates", "3", "--seed", "4")
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "(3 seeds)" in out and "candidates timed at 5 m/s:" in out
+    lines = [line.strip() for line in out.splitlines() if line.startswith("  seed ")]
+    assert [line.split(":")[0] for line in lines] == ["seed 4", "seed 5", "seed 6"]
+    timed = [float(m) for m in re.findall(r"^  seed \d+: ([\d.]+) s", out, re.M)]
+    assert timed, out  # seed 4 at least is timed; the others may share its paths
+    assert sum("(flown)" in line for line in lines) == 1
+    last_goal = re.search(r"timed at up to 5 m/s, .*: (\d+) s to the last goal", out)
+    assert last_goal is not None and abs(int(last_goal[1]) - min(timed)) <= 0.55, out
     assert all(s.mission_total == 0 and not s.armed for s in states)
 
 

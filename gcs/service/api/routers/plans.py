@@ -85,11 +85,12 @@ async def request_plan(
     at once (201); otherwise the answer is the job (202), whose progress can be polled at
     `/jobs/{id}` or watched on `/jobs/{id}/live`, and which can be cancelled."""
     budget = settings.max_plan_evaluations
-    if request.time_budget_s is None and request.population * request.iterations > budget:
+    evaluations = request.population * request.iterations * request.candidates
+    if request.time_budget_s is None and evaluations > budget:
         detail = (
-            f"population x iterations = {request.population * request.iterations} exceeds "
-            f"this service's limit of {budget} evaluations per optimizer run without a "
-            "time budget (give `time_budget_s`)"
+            f"population x iterations x candidates = {evaluations} exceeds this service's "
+            f"limit of {budget} evaluations per optimizer run without a time budget (give "
+            "`time_budget_s`)"
         )
         return JSONResponse({"detail": detail}, status_code=422)
     if request.time_budget_s is not None and request.time_budget_s > settings.max_plan_seconds:
@@ -98,6 +99,15 @@ async def request_plan(
             f"{settings.max_plan_seconds} s per plan"
         )
         return JSONResponse({"detail": detail}, status_code=422)
+    soonest_of = None
+    if request.candidates > 1:
+        if (await scenarios.get(scenario_id)).body.get("origin") is None:
+            detail = (
+                f"candidates: scenario {scenario_id} has no origin, so its plans cannot be "
+                "timed as flown; give it an origin or ask for one candidate"
+            )
+            return JSONResponse({"detail": detail}, status_code=422)
+        soonest_of = request.candidates, request.flight_speed_m_s
     planner_settings = PlannerSettings(
         algorithm=request.algorithm,
         objective=request.objective,
@@ -110,7 +120,9 @@ async def request_plan(
         safe_start_limit_s=settings.max_plan_seconds,
     )
     wait = settings.inline_plan_wait_s if request.wait_s is None else request.wait_s
-    job = await planning.request(scenario_id, planner_settings, wait, request.clearance_m)
+    job = await planning.request(
+        scenario_id, planner_settings, wait, request.clearance_m, soonest_of
+    )
     if job.state == JobState.DONE and job.plan_id is not None:
         return await plan_out(await plans.get(job.plan_id), scenarios)
     final = JobState(job.state).is_final
