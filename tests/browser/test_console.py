@@ -158,8 +158,10 @@ def test_an_operator_flies_case_vi_from_the_console(
         screen = ScreenFrame(b.js(SCREEN)["cells"])
         assert screen.cell_px > 20, "cells too small to read at 1280x800"
 
-        # Plan (the token is asked once, here), watch the job, see three paths.
+        # Plan two candidates (the token is asked once, here), watch the job, see three
+        # paths: the candidate flown soonest at the Fly section's speed, its seed shown.
         page.fill("#pl-budget", "3")
+        page.fill("#pl-candidates", "2")
         page.click("#plan-btn")
         page.wait_for_selector("#token-dialog[open]")
         page.fill("#token-input", TOKEN)
@@ -171,6 +173,9 @@ def test_an_operator_flies_case_vi_from_the_console(
         plan_id = page.inner_text("#plan-id").strip()
         plan = client.get(f"/plans/{plan_id}").json()["plan"]
         assert plan["feasible"]
+        assert f"seed {plan['seed']}" in metrics and plan["seed"] in (1, 2)
+        job = next(j for j in client.get("/jobs").json() if j["plan_id"] == plan_id)
+        assert job["settings"]["candidates"] == 2 and job["settings"]["flight_speed_m_s"] == 5
 
         # Play: the discs move along the paths and the time runs to the plan's end.
         discs_before = b.js(

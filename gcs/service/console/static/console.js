@@ -288,10 +288,14 @@ async function loadStoredList() {
 function planRequest() {
   const int = (id) => Number.parseInt($(id).value, 10);
   const budget = $("pl-budget").value.trim();
+  const candidates = int("pl-candidates");
   return {
     algorithm: $("pl-algorithm").value, objective: $("pl-objective").value,
     seed: int("pl-seed"), population: int("pl-population"), iterations: int("pl-iterations"),
     time_budget_s: budget === "" || Number(budget) === 0 ? null : Number(budget),
+    candidates,
+    // candidates are timed at the speed the Fly section will fly (only then is it sent)
+    ...(candidates > 1 ? { flight_speed_m_s: Number($("fl-speed").value) } : {}),
     wait_s: 0, // always a job: the progress bar shows what the planner is doing
   };
 }
@@ -386,7 +390,7 @@ function renderMetrics(planOut) {
     ["mean deviation", `${fmt(m.mean_deviation)} cells`],
     ["first safe after", m.first_safe_s == null ? "–" : `${fmt(m.first_safe_s)} s`],
     ["cost / J", `${fmt(m.cost)} / ${fmt(m.J)}`],
-    ["planning", `${fmt(m.seconds)} s, ${m.nfe} evaluations, ${plan.algorithm} ${plan.objective}, ${plan.stop_reason ?? ""}`],
+    ["planning", `${fmt(m.seconds)} s, ${m.nfe} evaluations, ${plan.algorithm} ${plan.objective} seed ${plan.seed}, ${plan.stop_reason ?? ""}`],
   ];
   const body = $("metrics").querySelector("tbody");
   body.replaceChildren(...rows.map(([k, v]) => el("tr", {}, el("th", { scope: "row", text: k }), el("td", { text: v }))));
