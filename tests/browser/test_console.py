@@ -176,6 +176,25 @@ def test_an_operator_flies_case_vi_from_the_console(
         assert f"seed {plan['seed']}" in metrics and plan["seed"] in (1, 2)
         job = next(j for j in client.get("/jobs").json() if j["plan_id"] == plan_id)
         assert job["settings"]["candidates"] == 2 and job["settings"]["flight_speed_m_s"] == 5
+        # How long it flies as the Fly section says (5 m/s, 10 m up, land), before anything
+        # is uploaded.
+        asked = "max_speed_m_s=5&altitude_m=10&finish=land"
+        timing = client.get(f"/plans/{plan_id}/timing?{asked}").json()
+        b.wait_js("() => document.querySelector('#timed-flight').textContent !== '…'", 30)
+        timed = page.inner_text("#timed-flight")
+        assert timed == f"{timing['duration_s']:.1f} s to the last goal at 5.0 m/s", timed
+        for speed, why in (("20", "highest speed it can keep safe"), ("25", "less than or equal")):
+            page.fill("#fl-speed", speed)
+            page.press("#fl-speed", "Tab")
+            text = "document.querySelector('#timed-flight').textContent"
+            b.wait_js(f"() => {text}.startsWith('at {speed} m/s: ')", 30)
+            assert why in page.inner_text("#timed-flight")
+        page.fill("#fl-speed", "5")
+        page.press("#fl-speed", "Tab")
+        b.wait_js(f"() => {text} === {json.dumps(timed)}", 30)
+        refused = [m for m in b.errors if "status of 422" in m]
+        assert len(refused) == 2, b.errors  # the browser logs both refusals: expected
+        b.errors[:] = [m for m in b.errors if m not in refused]
 
         # Play: the discs move along the paths and the time runs to the plan's end.
         discs_before = b.js(

@@ -391,11 +391,36 @@ function renderMetrics(planOut) {
     ["first safe after", m.first_safe_s == null ? "–" : `${fmt(m.first_safe_s)} s`],
     ["cost / J", `${fmt(m.cost)} / ${fmt(m.J)}`],
     ["planning", `${fmt(m.seconds)} s, ${m.nfe} evaluations, ${plan.algorithm} ${plan.objective} seed ${plan.seed}, ${plan.stop_reason ?? ""}`],
+    ["timed flight", "…", "timed-flight"],
   ];
   const body = $("metrics").querySelector("tbody");
-  body.replaceChildren(...rows.map(([k, v]) => el("tr", {}, el("th", { scope: "row", text: k }), el("td", { text: v }))));
+  body.replaceChildren(...rows.map(([k, v, id]) => el("tr", {}, el("th", { scope: "row", text: k }), el("td", { text: v, id }))));
   $("metrics").hidden = false;
+  showTiming();
 }
+
+/** How long the plan flies with the Fly section's speed, altitude and finish, as the service
+ * times it (ArduCopter's default limits), before anything is uploaded; or why it cannot be
+ * flown so. */
+async function showTiming() {
+  const planOut = S.plan;
+  if (!planOut || !$("timed-flight")) return;
+  const speed = $("fl-speed").value;
+  const options = timingOptions();
+  let text;
+  try {
+    const timing = await get(`/plans/${planOut.id}/timing?${options}`);
+    text = `${fmt(timing.duration_s, 1)} s to the last goal at ${fmt(timing.max_speed_m_s, 1)} m/s`;
+  } catch (error) {
+    const why = Array.isArray(error.detail) ? error.detail.map((d) => d.msg).join("; ") : error.message;
+    text = `at ${speed} m/s: ${why}`;
+  }
+  if (S.plan === planOut && timingOptions() === options) $("timed-flight").textContent = text;
+}
+
+const timingOptions = () => new URLSearchParams({
+  max_speed_m_s: $("fl-speed").value, altitude_m: $("fl-alt").value, finish: $("fl-finish").value,
+}).toString();
 
 function renderLegend(plan) {
   $("legend").replaceChildren(...plan.uavs.map((u) => el("span", { class: "legend-item" },
@@ -873,6 +898,7 @@ function wire() {
   $("play-btn").addEventListener("click", () => togglePlay());
   $("time-slider").addEventListener("input", (e) => { togglePlay(false); setTime(Number(e.target.value)); });
   $("upload-btn").addEventListener("click", bindAndUpload);
+  for (const id of ["fl-speed", "fl-alt", "fl-finish"]) $(id).addEventListener("change", showTiming);
   $("start-btn").addEventListener("click", startFlight);
   $("cancel-flight-btn").addEventListener("click", () => fleetCommand("cancel"));
   $("pause-btn").addEventListener("click", () => fleetCommand("pause"));
