@@ -370,9 +370,9 @@ def _candidates_line(candidates: int) -> list[str]:
     if candidates <= 1:
         return []
     return [
-        f"Each product flight is the soonest of {candidates} seeds' plans (`mvo-gcs fly "
-        f"--candidates {candidates}`: seeds 1 to {candidates}, each timed at the flight's "
-        "speed with the vehicles' own limits).",
+        f"Each product flight is the soonest of {candidates} candidate plans (`mvo-gcs fly "
+        f"--candidates {candidates}`: seeds 1 to {candidates}, clearance 1.3 m and 0.5 m "
+        "wider each, each timed at the flight's speed with the vehicles' own limits).",
         "",
     ]
 
@@ -446,7 +446,7 @@ def main() -> int:
         "--candidates",
         type=int,
         default=1,
-        help="fly the soonest of this many seeds' plans (`mvo-gcs fly --candidates`)",
+        help="fly the soonest of this many candidate plans (`mvo-gcs fly --candidates`)",
     )
     parser.add_argument("--out", type=Path, default=RESULTS)
     parser.add_argument("--json", type=Path, default=None, help="also every result as JSON")

@@ -9,8 +9,9 @@ actually flown, from the vehicles' reported positions, is printed against the pl
 under 2R exits 1. `--dry-run` stops before the upload: the speed checked against the
 vehicles' own limits and the flight's timing printed, nothing uploaded or armed (a faster
 cruise is not always sooner, so a few speeds can be compared first). With
-`--candidates N` the scenario is planned with N seeds and the plan the vehicles fly
-soonest at that speed is flown (`gcs.mission.flight_choice`).
+`--candidates N` the scenario is planned N times (the next seed and a wider clearance
+each time) and the plan the vehicles fly soonest at that speed is flown
+(`gcs.mission.flight_choice`).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from gcs.mavlink import client
 from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import VehicleLink
 from gcs.mission.build import DEFAULT_ALTITUDE_M
-from gcs.mission.flight_choice import Choice, soonest
+from gcs.mission.flight_choice import WIDER_M, Choice, candidate, soonest
 from gcs.mission.flight_plan import (
     DEFAULT_CLEARANCE_M,
     TURN_RADIUS_M,
@@ -94,9 +95,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=positive_int,
         default=1,
         metavar="N",
-        help="plan with N seeds (--seed and the next ones, sharing --time-budget) and fly "
-        "the plan the vehicles reach their goals soonest with, timed at --max-speed "
-        "(default: %(default)s)",
+        help="plan N candidates, sharing --time-budget (the k-th from 0: seed --seed + k, "
+        f"clearance --clearance + {WIDER_M:g} k m), and fly the one the vehicles reach "
+        "their goals soonest with, timed at --max-speed (default: %(default)s)",
     )
     parser.add_argument("--connect-timeout", type=float, default=15.0)
     parser.add_argument(
@@ -127,14 +128,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _plans(scenario: Scenario, args: argparse.Namespace) -> list[Plan]:
-    """One plan per seed, from `--seed` on."""
+    """One plan per candidate (`gcs.mission.flight_choice`)."""
     from planner.pipeline import plan
 
-    seeds = f"{args.candidates} seeds" if args.candidates > 1 else f"seed {args.seed}"
+    seeds = f"{args.candidates} candidates" if args.candidates > 1 else f"seed {args.seed}"
     print(f"planning {scenario.name} with {args.algorithm} ({seeds}) ...", flush=True)
-    settings = planner_settings(args)
-    widened = scenario.with_clearance(args.clearance)
-    return [plan(widened, settings.candidate(k, args.candidates)) for k in range(args.candidates)]
+    settings, count = planner_settings(args), args.candidates
+    return [
+        plan(candidate(scenario, args.clearance, k), settings.candidate(k, count))
+        for k in range(count)
+    ]
 
 
 async def _fly(
@@ -206,8 +209,10 @@ async def _flight(
     if len(plans) > 1:
         print(f"candidates timed at {args.max_speed:g} m/s:", flush=True)
         for trial in choice.trials:
+            clearance = args.clearance + (trial.seed - args.seed) * WIDER_M
             chosen = " (flown)" if trial.seed == choice.plan.seed else ""
-            print(f"  {trial.describe()}{chosen}", flush=True)
+            which = f"seed {trial.seed}, clearance {clearance:g} m"
+            print(f"  {which}: {trial.outcome()}{chosen}", flush=True)
     flight = choice.flight
     what = "timed" if args.dry_run else "flying"
     print(

@@ -68,7 +68,7 @@ class PlanningService:
         planned = Scenario(**scenario.body).with_clearance(clearance_m).model_dump(mode="json")
         choice = None
         if soonest_of is not None:
-            choice = SoonestOf(*soonest_of, flown=scenario.body)
+            choice = SoonestOf(*soonest_of, flown=scenario.body, clearance_m=clearance_m)
         task = asyncio.ensure_future(self._run(job.id, planned, settings, choice))
         self._tasks[job.id] = task
         task.add_done_callback(lambda _: self._tasks.pop(job.id, None))

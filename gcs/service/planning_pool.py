@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass
 from multiprocessing.managers import SyncManager
 from typing import Any, Protocol
 
-from gcs.mission.flight_choice import soonest_by_default
+from gcs.mission.flight_choice import candidate, soonest_by_default
 from gcs.service.parent_watch import exit_with_parent
 from planner.model.scenario import Scenario, load_scenario
 from planner.pipeline import PlannerSettings, PlanProgress, plan
@@ -63,13 +63,14 @@ ProgressSink = Callable[[JobProgress], None]
 
 @dataclass(frozen=True)
 class SoonestOf:
-    """Plan with `count` seeds (the settings' and the next ones) and keep the plan the
-    vehicles fly soonest at `speed_m_s` (`gcs.mission.flight_choice.soonest_by_default`),
-    timed on `flown`: the scenario as flown, without the clearance the plans are made with."""
+    """Plan `count` candidates (`gcs.mission.flight_choice`: the settings' seed and the next
+    ones, `clearance_m` and wider) of `flown`, the scenario as flown, and keep the plan the
+    vehicles fly soonest at `speed_m_s` (`soonest_by_default`)."""
 
     count: int
     speed_m_s: float
     flown: dict[str, Any]
+    clearance_m: float
 
 
 class PlanRunner(Protocol):
@@ -214,15 +215,18 @@ def run_plan(
     cancel_each_iteration: bool = False,
     soonest_of: SoonestOf | None = None,
 ) -> dict[str, Any]:
-    """The worker: plan one scenario (or, `soonest_of`, several seeds of it, keeping the
-    plan flown soonest), reporting progress and honouring cancellation.
+    """The worker: plan one scenario (or, `soonest_of`, its candidates, keeping the plan
+    flown soonest), reporting progress and honouring cancellation.
     `cancelled.get(job_id)` is asked with every report, or with every optimizer iteration
     when it is cheap (`cancel_each_iteration`: a local flag, as on a Dask worker)."""
-    parsed = load_scenario(scenario)
-    expected_runs = len(parsed.uavs)
-    count = soonest_of.count if soonest_of is not None else 1
+    if soonest_of is None:
+        scenarios = [load_scenario(scenario)]
+    else:
+        flown = Scenario(**soonest_of.flown)
+        scenarios = [candidate(flown, soonest_of.clearance_m, k) for k in range(soonest_of.count)]
+    expected_runs = len(scenarios[0].uavs)
     last = 0.0
-    candidate = 0
+    planned = 0  # candidates done
 
     def on_progress(p: PlanProgress) -> None:
         nonlocal last
@@ -238,17 +242,17 @@ def run_plan(
             percent = p.budget_percent
         else:
             percent = 100 * (p.run - 1 + p.iteration / p.iterations) / max(expected_runs, p.run)
-        percent = (100 * candidate + min(100.0, percent)) / count
+        percent = (100 * planned + min(100.0, percent)) / len(scenarios)
         cost = p.best_cost if p.best_cost is not None else p.plan_cost
         progress.put((job_id, round(min(99.0, percent), 1), cost, p.run, p.uav, p.first_safe_s))
 
     plans = []
-    for candidate in range(count):
+    for planned, each in enumerate(scenarios):
         if cancelled.get(job_id):
             raise PlanCancelled(job_id)
-        seeded = PlannerSettings(**settings).candidate(candidate, count)
-        plans.append(plan(parsed, seeded, progress=on_progress))
+        seeded = PlannerSettings(**settings).candidate(planned, len(scenarios))
+        plans.append(plan(each, seeded, progress=on_progress))
     if soonest_of is None:
         return plans[0].model_dump(mode="json")
-    flown = Scenario(**soonest_of.flown)
-    return soonest_by_default(plans, flown, soonest_of.speed_m_s).model_dump(mode="json")
+    chosen = soonest_by_default(plans, Scenario(**soonest_of.flown), soonest_of.speed_m_s)
+    return chosen.model_dump(mode="json")

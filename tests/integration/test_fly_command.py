@@ -86,10 +86,12 @@ def test_with_candidates_every_seed_is_timed_and_the_soonest_flown(
     code, states = fly_case_1(monkeypatch, "--dry-run", "--candidates", "3", "--seed", "4")
     out = capsys.readouterr().out
     assert code == 0, out
-    assert "(3 seeds)" in out and "candidates timed at 5 m/s:" in out
+    assert "(3 candidates)" in out and "candidates timed at 5 m/s:" in out
     lines = [line.strip() for line in out.splitlines() if line.startswith("  seed ")]
-    assert [line.split(":")[0] for line in lines] == ["seed 4", "seed 5", "seed 6"]
-    timed = [float(m) for m in re.findall(r"^  seed \d+: ([\d.]+) s", out, re.M)]
+    assert [line.split(":")[0] for line in lines] == [
+        "seed 4, clearance 1.3 m", "seed 5, clearance 1.8 m", "seed 6, clearance 2.3 m",
+    ]  # fmt: skip
+    timed = [float(m) for m in re.findall(r"^  seed \d+, clearance .* m: ([\d.]+) s", out, re.M)]
     assert timed, out  # seed 4 at least is timed; the others may share its paths
     assert sum("(flown)" in line for line in lines) == 1
     last_goal = re.search(r"timed at up to 5 m/s, .*: (\d+) s to the last goal", out)

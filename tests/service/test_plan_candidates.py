@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 
+from gcs.mission.flight_choice import WIDER_M
 from gcs.service import planning_pool
 from planner.experiments.scenario_generator import gap_swap_scenario
 from planner.model.plan import Plan
@@ -20,7 +21,7 @@ pytestmark = pytest.mark.virtual_clock
 SWAP = gap_swap_scenario(0, uavs=6).model_copy(
     update={"origin": Origin(lat=-35.36, lon=149.16, alt_m=584.0)}
 )
-"""Six UAVs through a gap: seeds 1 to 3 plan flights some twenty seconds apart at 5 m/s."""
+"""Six UAVs through a gap: its first three candidates fly some twenty seconds apart at 5 m/s."""
 DETERMINISTIC = {"time_budget_s": None, "wait_s": 60}
 
 
@@ -41,11 +42,11 @@ async def _timed_s(gcs: InProcessService, plan_id: str, speed: float) -> float:
 async def test_of_three_seeds_the_plan_flown_soonest_is_kept(gcs: InProcessService) -> None:
     sid = (await gcs.client.post("/scenarios", json=SWAP.model_dump(mode="json"))).json()["id"]
     each = {}
-    for seed in (1, 2, 3):
-        alone = await _plan(gcs, sid, seed=seed)
+    for k, seed in enumerate((1, 2, 3)):  # candidate k: the next seed, 0.5 m more clearance
+        alone = await _plan(gcs, sid, seed=seed, clearance_m=1.3 + k * WIDER_M)
         each[seed] = await _timed_s(gcs, alone["id"], 5.0)
     assert len(set(each.values())) > 1, each  # otherwise there is nothing to choose
-    chosen = await _plan(gcs, sid, seed=1, candidates=3, flight_speed_m_s=5.0)
+    chosen = await _plan(gcs, sid, seed=1, clearance_m=1.3, candidates=3, flight_speed_m_s=5.0)
     soonest = min(each, key=each.__getitem__)
     assert chosen["plan"]["seed"] == soonest
     assert await _timed_s(gcs, chosen["id"], 5.0) == each[soonest]

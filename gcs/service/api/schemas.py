@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, TypeAdapter, field_validator
 
 from gcs.mission.build import DEFAULT_ALTITUDE_M
-from gcs.mission.flight_choice import MAX_CANDIDATES
+from gcs.mission.flight_choice import MAX_CANDIDATES, WIDER_M
 from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, MAX_SPEED_M_S, TURN_RADIUS_M
 from gcs.mission.motion import DEFAULT_SPEED_M_S
 from gcs.service.states import JobState
@@ -122,11 +122,11 @@ class PlanRequest(_In):
         default=1,
         ge=1,
         le=MAX_CANDIDATES,
-        description="plan with this many seeds (`seed` and the next ones) and keep the plan "
-        "the vehicles fly soonest at `flight_speed_m_s` (timed as `/plans/{id}/timing` "
-        "times it, with the default mission options): plans alike on the planner's clock "
-        "can fly tens of seconds apart on copters. They share `time_budget_s`; the scenario "
-        "needs an origin",
+        description="plan this many candidates (the k-th from 0: seed `seed` + k, clearance "
+        f"`clearance_m` + {WIDER_M:g} k m) and keep the plan the vehicles fly soonest at "
+        "`flight_speed_m_s` (timed as `/plans/{id}/timing` times it, with the default "
+        "mission options): plans alike on the planner's clock can fly tens of seconds apart "
+        "on copters. They share `time_budget_s`; the scenario needs an origin",
     )
     flight_speed_m_s: float = Field(
         default=DEFAULT_SPEED_M_S,
