@@ -221,7 +221,7 @@ def run_plan(
     when it is cheap (`cancel_each_iteration`: a local flag, as on a Dask worker)."""
     if soonest_of is None:
         scenarios = [load_scenario(scenario)]
-    else:
+    else:  # (`scenario` is then the first candidate's; each is made from `flown` here)
         flown = Scenario(**soonest_of.flown)
         scenarios = [candidate(flown, soonest_of.clearance_m, k) for k in range(soonest_of.count)]
     expected_runs = len(scenarios[0].uavs)
