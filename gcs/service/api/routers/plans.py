@@ -89,7 +89,7 @@ async def request_plan(
     if request.time_budget_s is None and evaluations > budget:
         detail = (
             f"population x iterations x candidates = {evaluations} exceeds this service's "
-            f"limit of {budget} evaluations per optimizer run without a time budget (give "
+            f"limit of {budget} evaluations per request without a time budget (give "
             "`time_budget_s`)"
         )
         return JSONResponse({"detail": detail}, status_code=422)
