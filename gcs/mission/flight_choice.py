@@ -64,6 +64,17 @@ class Choice:
 def soonest(plans: Iterable[Plan], fly_as: Callable[[Plan], FlightPlan]) -> Choice:
     """The feasible plan whose flight (`fly_as`) reaches its last goal soonest; the lowest
     seed among equals. Raises the most telling refusal when no candidate can be flown."""
+    trials, best, refusals = _timed(plans, fly_as)
+    if best is None:
+        raise _most_telling(refusals)
+    return Choice(best[0], best[1], trials)
+
+
+def _timed(
+    plans: Iterable[Plan], fly_as: Callable[[Plan], FlightPlan]
+) -> tuple[list[Trial], tuple[FlightPlan, Plan] | None, list[Refusal]]:
+    """Every candidate's trial, the soonest flight and its plan (None if none can be
+    flown), and why the others cannot."""
     trials: list[Trial] = []
     refusals: list[Refusal] = []
     seen: dict[tuple[tuple[str, str], ...], int] = {}
@@ -87,9 +98,7 @@ def soonest(plans: Iterable[Plan], fly_as: Callable[[Plan], FlightPlan]) -> Choi
         trials.append(Trial(plan.seed, duration_s=duration))
         if best is None or duration < best[0].duration_s:
             best = flight, plan
-    if best is None:
-        raise _most_telling(refusals)
-    return Choice(best[0], best[1], trials)
+    return trials, best, refusals
 
 
 def _most_telling(refusals: list[Refusal]) -> Exception:
@@ -103,17 +112,23 @@ def _most_telling(refusals: list[Refusal]) -> Exception:
     return ValueError("no candidate plan is safe")
 
 
-def soonest_by_default(plans: Sequence[Plan], scenario: Scenario, speed_m_s: float) -> Plan:
+def soonest_by_default(
+    plans: Sequence[Plan], scenario: Scenario, speed_m_s: float
+) -> tuple[Plan, list[Trial]]:
     """The plan flown soonest at `speed_m_s` by ArduCopters with their default limits and
     the default mission options (as `GET /plans/{id}/timing` times it), for choosing before
-    the vehicles are known; the first feasible plan when none can be flown at that speed
-    (the flight will say why), the first plan when none is feasible."""
+    the vehicles are known, and every candidate's trial; the first feasible plan when none
+    can be flown at that speed (the flight will say why), the first plan when none is
+    feasible."""
     autopilots = dict.fromkeys((u.id for u in scenario.uavs), Autopilot.ARDUPILOT)
 
     def fly_as(plan: Plan) -> FlightPlan:
         return flight_plan(plan, scenario, autopilots, max_speed_m_s=speed_m_s)
 
     try:
-        return soonest(plans, fly_as).plan
-    except (UnsafeSpeed, FlightStuck, ValueError):
-        return next((p for p in plans if p.feasible), plans[0])
+        trials, best, _ = _timed(plans, fly_as)
+    except ValueError:  # a scenario that cannot be flown at all (the flight will say why)
+        trials, best = [], None
+    if best is not None:
+        return best[1], trials
+    return next((p for p in plans if p.feasible), plans[0]), trials

@@ -36,6 +36,7 @@ from typing import Any
 from gcs.service.planning_pool import (
     JobProgress,
     PlanCancelled,
+    PlanResult,
     ProgressSink,
     SoonestOf,
     run_plan,
@@ -104,8 +105,8 @@ class DaskPlanner:
         scenario: dict[str, Any],
         settings: PlannerSettings,
         soonest_of: SoonestOf | None = None,
-    ) -> asyncio.Future[dict[str, Any]]:
-        """The plan's JSON when done; PlanCancelled if cancelled first; WorkerLost if its
+    ) -> asyncio.Future[PlanResult]:
+        """The worker's result when done; PlanCancelled if cancelled first; WorkerLost if its
         worker left the cluster meanwhile."""
         assert self._client is not None, "start() first"
         future = self._client.submit(
@@ -124,7 +125,7 @@ class DaskPlanner:
         self._jobs[job_id] = _Job(job_id, future, lost)
         return asyncio.ensure_future(self._result(self._jobs[job_id]))
 
-    async def _result(self, job: _Job) -> dict[str, Any]:
+    async def _result(self, job: _Job) -> PlanResult:
         from distributed.client import FutureCancelledError
 
         result = asyncio.ensure_future(job.future.result())
@@ -142,7 +143,7 @@ class DaskPlanner:
                 "the job is not re-run"
             )
         try:
-            body: dict[str, Any] = result.result()
+            body: PlanResult = result.result()
         except FutureCancelledError as exc:
             if job.job_id in self._cancel_requested:
                 raise PlanCancelled(job.job_id) from exc
@@ -278,7 +279,7 @@ def plan_on_worker(
     topic: str,
     cancel_event: str,
     soonest_of: SoonestOf | None = None,
-) -> dict[str, Any]:
+) -> PlanResult:
     """The task on a Dask worker: `run_plan` with progress as events and the job's Event
     looked at every optimizer iteration."""
     from distributed import Event, get_client, get_worker

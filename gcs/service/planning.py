@@ -86,7 +86,7 @@ class PlanningService:
         assert self.pool is not None, "the planning pool starts with the service"
         started = time.perf_counter()
         try:
-            body = await self.pool.submit(job_id, scenario, settings, soonest_of)
+            result = await self.pool.submit(job_id, scenario, settings, soonest_of)
         except (PlanCancelled, asyncio.CancelledError) as exc:
             if self._stopping:  # not the user's doing: as after a crash (Database.recover)
                 await self._set(job_id, J.INTERRUPTED, error="the service stopped")
@@ -97,9 +97,14 @@ class PlanningService:
             await self._set(job_id, J.FAILED, error=f"{type(exc).__name__}: {exc}")
             self.metrics.plans.labels("failed").inc()
         else:
-            job = await self.jobs.get(job_id)
+            job, body = await self.jobs.get(job_id), result["plan"]
             row = await self.plans.add(
-                PlanRow(scenario_id=job.scenario_id, feasible=body["feasible"], body=body)
+                PlanRow(
+                    scenario_id=job.scenario_id,
+                    feasible=body["feasible"],
+                    body=body,
+                    candidates=result["candidates"],
+                )
             )
             await self._set(job_id, J.DONE, percent=100.0, plan_id=row.id)
             self.metrics.plans.labels("feasible" if body["feasible"] else "infeasible").inc()

@@ -28,9 +28,9 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 from multiprocessing.managers import SyncManager
-from typing import Any, Protocol
+from typing import Any, Protocol, TypedDict
 
-from gcs.mission.flight_choice import candidate, soonest_by_default
+from gcs.mission.flight_choice import WIDER_M, Trial, candidate, soonest_by_default
 from gcs.service.parent_watch import exit_with_parent
 from planner.model.scenario import Scenario, load_scenario
 from planner.pipeline import PlannerSettings, PlanProgress, plan
@@ -73,6 +73,14 @@ class SoonestOf:
     clearance_m: float
 
 
+class PlanResult(TypedDict):
+    """What a planning worker sends back: the plan's JSON and, when several candidates
+    were planned (`SoonestOf`), what each came to (`candidates_json`), else None."""
+
+    plan: dict[str, Any]
+    candidates: list[dict[str, Any]] | None
+
+
 class PlanRunner(Protocol):
     """Where plans are computed: worker processes (`PlanningPool`), a thread, or a Dask
     cluster (`DaskPlanner`). Started and shut down on the service's event loop."""
@@ -85,7 +93,7 @@ class PlanRunner(Protocol):
         scenario: dict[str, Any],
         settings: PlannerSettings,
         soonest_of: SoonestOf | None = None,
-    ) -> asyncio.Future[dict[str, Any]]: ...
+    ) -> asyncio.Future[PlanResult]: ...
 
     def cancel(self, job_id: str) -> None: ...
 
@@ -122,8 +130,8 @@ class PlanningPool:
         scenario: dict[str, Any],
         settings: PlannerSettings,
         soonest_of: SoonestOf | None = None,
-    ) -> asyncio.Future[dict[str, Any]]:
-        """The plan's JSON when the worker is done; PlanCancelled if cancelled first."""
+    ) -> asyncio.Future[PlanResult]:
+        """The worker's result when it is done; PlanCancelled if cancelled first."""
         future = self._executor.submit(
             run_plan, job_id, scenario, asdict(settings), self._progress, self._cancelled,
             soonest_of=soonest_of,
@@ -174,7 +182,7 @@ class ThreadPlanner:
         scenario: dict[str, Any],
         settings: PlannerSettings,
         soonest_of: SoonestOf | None = None,
-    ) -> asyncio.Future[dict[str, Any]]:
+    ) -> asyncio.Future[PlanResult]:
         assert self._loop is not None, "start() first"
         self._cancelled.setdefault(job_id, False)  # so that shutdown() can cancel it
         work = functools.partial(
@@ -214,7 +222,7 @@ def run_plan(
     *,
     cancel_each_iteration: bool = False,
     soonest_of: SoonestOf | None = None,
-) -> dict[str, Any]:
+) -> PlanResult:
     """The worker: plan one scenario (or, `soonest_of`, its candidates, keeping the plan
     flown soonest), reporting progress and honouring cancellation.
     `cancelled.get(job_id)` is asked with every report, or with every optimizer iteration
@@ -253,6 +261,29 @@ def run_plan(
         seeded = PlannerSettings(**settings).candidate(planned, len(scenarios))
         plans.append(plan(each, seeded, progress=on_progress))
     if soonest_of is None:
-        return plans[0].model_dump(mode="json")
-    chosen = soonest_by_default(plans, Scenario(**soonest_of.flown), soonest_of.speed_m_s)
-    return chosen.model_dump(mode="json")
+        return {"plan": plans[0].model_dump(mode="json"), "candidates": None}
+    flown = Scenario(**soonest_of.flown)
+    chosen, trials = soonest_by_default(plans, flown, soonest_of.speed_m_s)
+    return {
+        "plan": chosen.model_dump(mode="json"),
+        "candidates": candidates_json(trials, chosen.seed, soonest_of.clearance_m),
+    }
+
+
+def candidates_json(
+    trials: list[Trial], kept_seed: int, clearance_m: float
+) -> list[dict[str, Any]]:
+    """Each candidate in the order planned (the k-th keeps `clearance_m` and k steps of
+    `WIDER_M`), with its timed flight (to the hundredth, as `/plans/{id}/timing` gives
+    it) or why it cannot be flown, and which was kept."""
+    return [
+        {
+            "seed": trial.seed,
+            "clearance_m": round(clearance_m + k * WIDER_M, 6),
+            "duration_s": None if trial.duration_s is None else round(trial.duration_s, 2),
+            "refusal": trial.refusal,
+            "same_as": trial.same_as,
+            "kept": trial.seed == kept_seed,
+        }
+        for k, trial in enumerate(trials)
+    ]

@@ -171,9 +171,21 @@ def test_an_operator_flies_case_vi_from_the_console(
         metrics = page.inner_text("#metrics")
         assert "min separation" in metrics and "first safe after" in metrics
         plan_id = page.inner_text("#plan-id").strip()
-        plan = client.get(f"/plans/{plan_id}").json()["plan"]
+        planned = client.get(f"/plans/{plan_id}").json()
+        plan = planned["plan"]
         assert plan["feasible"]
         assert f"seed {plan['seed']}" in metrics and plan["seed"] in (1, 2)
+        # Each candidate as its flight was timed when chosen (or why it could not be).
+        assert "candidates\t2, the soonest flown kept" in metrics, metrics
+        for c in planned["candidates"]:
+            outcome = (
+                f"the same paths as seed {c['same_as']}"
+                if c["same_as"] is not None
+                else c["refusal"] or f"{c['duration_s']:.1f} s"
+            )
+            row = f"seed {c['seed']}, {c['clearance_m']:.1f} m\t{outcome}"
+            assert row + (" (kept)" if c["kept"] else "") in metrics, (row, metrics)
+        assert [c["kept"] for c in planned["candidates"]] == [s == plan["seed"] for s in (1, 2)]
         job = next(j for j in client.get("/jobs").json() if j["plan_id"] == plan_id)
         assert job["settings"]["candidates"] == 2 and job["settings"]["flight_speed_m_s"] == 5
         # How long it flies as the Fly section says (5 m/s, 10 m up, land), before anything

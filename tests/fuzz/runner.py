@@ -167,7 +167,7 @@ class _Unheard:
 
 
 @functools.cache
-def _memo_plan(scenario: str, settings: str) -> dict[str, Any]:
+def _memo_plan(scenario: str, settings: str) -> planning_pool.PlanResult:
     return _plain_run_plan("fuzz", json.loads(scenario), json.loads(settings), _Unheard(), {})
 
 
@@ -183,7 +183,7 @@ def _memoised_run_plan(
     *,
     cancel_each_iteration: bool = False,
     soonest_of: planning_pool.SoonestOf | None = None,
-) -> dict[str, Any]:
+) -> planning_pool.PlanResult:
     """The planner, once per scenario and settings in this process (plans are pure; run_plan's
     signature, its progress and cancellation unused)."""
     if soonest_of is not None:  # (the fuzzer's flights plan one seed)

@@ -44,12 +44,21 @@ async def test_of_three_seeds_the_plan_flown_soonest_is_kept(gcs: InProcessServi
     each = {}
     for k, seed in enumerate((1, 2, 3)):  # candidate k: the next seed, 0.5 m more clearance
         alone = await _plan(gcs, sid, seed=seed, clearance_m=1.3 + k * WIDER_M)
+        assert alone["candidates"] is None
         each[seed] = await _timed_s(gcs, alone["id"], 5.0)
     assert len(set(each.values())) > 1, each  # otherwise there is nothing to choose
     chosen = await _plan(gcs, sid, seed=1, clearance_m=1.3, candidates=3, flight_speed_m_s=5.0)
     soonest = min(each, key=each.__getitem__)
     assert chosen["plan"]["seed"] == soonest
     assert await _timed_s(gcs, chosen["id"], 5.0) == each[soonest]
+    trials = chosen["candidates"]  # what each came to, as each seed's own plan times
+    assert [(t["seed"], t["duration_s"], t["kept"]) for t in trials] == [
+        (seed, each[seed], seed == soonest) for seed in (1, 2, 3)
+    ]
+    assert [t["clearance_m"] for t in trials] == [1.3, 1.3 + WIDER_M, 1.3 + 2 * WIDER_M]
+    assert all(t["refusal"] is None and t["same_as"] is None for t in trials)
+    again = (await gcs.client.get(f"/plans/{chosen['id']}")).json()
+    assert again["candidates"] == trials
     jobs = (await gcs.client.get("/jobs")).json()
     job = next(j for j in jobs if j["plan_id"] == chosen["id"])
     assert {"candidates": 3, "flight_speed_m_s": 5.0}.items() <= job["settings"].items()

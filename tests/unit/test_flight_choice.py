@@ -9,7 +9,7 @@ from functools import cache
 import pytest
 
 from gcs.mavlink.mission_item import Autopilot
-from gcs.mission.flight_choice import soonest
+from gcs.mission.flight_choice import soonest, soonest_by_default
 from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, FlightPlan, UnsafeSpeed, flight_plan
 from gcs.mission.flight_timing import FlightStuck
 from planner.experiments.scenario_generator import gap_swap_scenario
@@ -98,3 +98,14 @@ def test_an_infeasible_candidate_is_skipped_and_none_feasible_is_an_error() -> N
     assert choice.trials[0].refusal == "no safe plan"
     with pytest.raises(ValueError, match="no candidate plan is safe"):
         soonest([infeasible], _at_5)
+
+
+def test_chosen_before_the_vehicles_are_known_every_trial_is_kept() -> None:
+    """The service's choice (ArduCopter's defaults) gives each candidate's trial with the
+    plan; when none can be flown at the speed it keeps the first, and says why each not."""
+    kept, trials = soonest_by_default(_plans(), _swap(), 5.0)
+    assert kept.seed == soonest(_plans(), _at_5).plan.seed
+    assert [t.duration_s for t in trials] == [_at_5(p).duration_s for p in _plans()]
+    first, trials = soonest_by_default(_plans(), _swap(), 20.0)  # faster than any keeps safe
+    assert first.seed == _plans()[0].seed
+    assert all(t.duration_s is None and "highest speed" in (t.refusal or "") for t in trials)

@@ -151,11 +151,31 @@ class PlanRequest(_In):
         return key
 
 
+class CandidateOut(BaseModel):
+    """One candidate of a plan chosen of several (`candidates` in the request)."""
+
+    seed: int
+    clearance_m: float = Field(description="metres beyond 2R it was planned to keep")
+    duration_s: float | None = Field(
+        description="its timed flight at the request's `flight_speed_m_s`: the common start "
+        "to the last arrival; null when it cannot be flown (see `refusal`) or has the same "
+        "paths as an earlier candidate (`same_as`)"
+    )
+    refusal: str | None = Field(description="why it cannot be flown at that speed")
+    same_as: int | None = Field(description="the seed of an earlier candidate, same paths")
+    kept: bool = Field(description="the plan is this candidate")
+
+
 class PlanOut(_Out):
     id: str
     scenario_id: str
     created_at: UtcDatetime
     plan: Plan
+    candidates: list[CandidateOut] | None = Field(
+        default=None,
+        description="what each candidate came to, in the order planned, when the plan was "
+        "chosen of several (`candidates` above 1); null for a plan planned alone",
+    )
     trajectories_wgs84: dict[str, list[list[float]]] | None = Field(
         default=None,
         description="per UAV id, its trajectory as [t, lat, lon] points (degrees, WGS84), "

@@ -51,6 +51,9 @@ class PlanRow(Base):
     feasible: Mapped[bool]
     body: Mapped[dict[str, Any]]
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=now)
+    candidates: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON, nullable=True)
+    """What each candidate came to when several were planned for the plan's job
+    (`planning_pool.candidates_json`); None when the plan was planned alone."""
 
 
 class JobRow(Base):

@@ -21,7 +21,15 @@ from gcs.service.api.deps import (
     mutating,
 )
 from gcs.service.api.live_sockets import send_until_done
-from gcs.service.api.schemas import MAX_PAGE, JobOut, PlanOut, PlanRequest, PlanSummary, Problem
+from gcs.service.api.schemas import (
+    MAX_PAGE,
+    CandidateOut,
+    JobOut,
+    PlanOut,
+    PlanRequest,
+    PlanSummary,
+    Problem,
+)
 from gcs.service.states import OPEN, JobState, StateConflict
 from gcs.service.storage import ScenarioRepository
 from gcs.service.storage.tables import JobRow, PlanRow
@@ -52,6 +60,7 @@ async def plan_out(row: PlanRow, scenarios: ScenarioRepository) -> PlanOut:
         scenario_id=row.scenario_id,
         created_at=row.created_at,
         plan=plan,
+        candidates=None if row.candidates is None else [CandidateOut(**c) for c in row.candidates],
         trajectories_wgs84=None if frame is None else wgs84_trajectories(frame, plan),
     )
 

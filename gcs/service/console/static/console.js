@@ -391,12 +391,26 @@ function renderMetrics(planOut) {
     ["first safe after", m.first_safe_s == null ? "–" : `${fmt(m.first_safe_s)} s`],
     ["cost / J", `${fmt(m.cost)} / ${fmt(m.J)}`],
     ["planning", `${fmt(m.seconds)} s, ${m.nfe} evaluations, ${plan.algorithm} ${plan.objective} seed ${plan.seed}, ${plan.stop_reason ?? ""}`],
+    ...candidateRows(planOut.candidates),
     ["timed flight", "…", "timed-flight"],
   ];
   const body = $("metrics").querySelector("tbody");
   body.replaceChildren(...rows.map(([k, v, id]) => el("tr", {}, el("th", { scope: "row", text: k }), el("td", { text: v, id }))));
   $("metrics").hidden = false;
   showTiming();
+}
+
+/** A plan chosen of several: what each candidate's flight was timed at when it was
+ * chosen, or why it could not be flown, and which one the plan is. */
+function candidateRows(candidates) {
+  if (!candidates) return [];
+  const outcome = (c) => c.same_as != null ? `the same paths as seed ${c.same_as}`
+    : c.refusal ?? `${fmt(c.duration_s, 1)} s`;
+  return [
+    ["candidates", `${candidates.length}, the soonest flown kept`],
+    ...candidates.map((c) => [`  seed ${c.seed}, ${fmt(c.clearance_m, 1)} m`,
+      `${outcome(c)}${c.kept ? " (kept)" : ""}`]),
+  ];
 }
 
 /** How long the plan flies with the Fly section's speed, altitude and finish, as the service
