@@ -22,6 +22,12 @@ and judges their safety with), with the plans `flight_speed.py` flies:
   1.3 m and 0.5 m wider each): the planner's clock does not rank plans as copters fly
   them.
 
+- *instant, order*: the passing order kept by copters that change speed within a fraction
+  of a second (`INSTANT`; no reaction time or buffer either), a UAV out of the way the moment it
+  reaches its goal: against *plan*, what keeping the order itself costs; against *order,
+  no landing*, what stopping and starting copters for it costs (not one of the bounds
+  below: it can be sooner than *alone*).
+
 Each column up to *product* is a lower bound on the ones after it. Run:
 
     .venv/bin/python bench/flight_time.py
@@ -45,7 +51,7 @@ from gcs.mavlink.mission_item import Autopilot  # noqa: E402
 from gcs.mission.flight_choice import candidate, soonest  # noqa: E402
 from gcs.mission.flight_plan import DEFAULT_CLEARANCE_M, FlightPlan, flight_plan  # noqa: E402
 from gcs.mission.flight_timing import fly  # noqa: E402
-from gcs.mission.motion import LAND_SETTLE_S, CopterLimits  # noqa: E402
+from gcs.mission.motion import LAND_SETTLE_S, CopterLimits, StoppingRule  # noqa: E402
 from planner.experiments.machine import describe_machine  # noqa: E402
 from planner.model.plan import Plan  # noqa: E402
 from planner.model.scenario import Scenario  # noqa: E402
@@ -59,7 +65,16 @@ SPEEDS = (1.0, 5.0, 10.0)
 CANDIDATES = 8
 COLUMNS = (
     "plan", "alone", "order, no landing", "order, 2R down", "product", f"soonest of {CANDIDATES}",
+    "instant, order",
 )  # fmt: skip
+INSTANT = {
+    "accel_m_s2": 10.0,
+    "jerk_m_s3": 50.0,
+    "stop_jerk_m_s3": 50.0,
+    "corner_accel_m_s2": 20.0,
+}
+"""Limits of a copter that changes speed within a fraction of a second (10 m/s in about
+1.2 s from rest): quicker ones the timing's 0.05 s steps do not follow."""
 
 
 @dataclass
@@ -86,11 +101,14 @@ class OutOfTheWayBelow(CopterLimits):
 
 
 def last_arrival(
-    flight: FlightPlan, altitude_m: float, limits: dict[str, CopterLimits] | None = None
+    flight: FlightPlan,
+    altitude_m: float,
+    limits: dict[str, CopterLimits] | None = None,
+    rule: StoppingRule | None = None,
 ) -> float:
     """The passing order kept, landings from `altitude_m` (0: no landing)."""
     timed = fly(
-        flight.paths, flight.leg_speeds, limits or flight.limits, flight.order,
+        flight.paths, flight.leg_speeds, limits or flight.limits, flight.order, rule,
         altitude_m=altitude_m, stops=flight.stops,
     )  # fmt: skip
     return max(t.arrival_s for t in timed.values())
@@ -106,6 +124,14 @@ def two_r_down(flight: FlightPlan) -> dict[str, CopterLimits]:
         )
         for uav, limits in flight.limits.items()
     }
+
+
+AT_ONCE = StoppingRule(reaction_s=0.0, buffer_m=0.0, creep_buffer_m=0.0)
+"""The stopping rule with nothing between seeing and stopping."""
+
+
+def instant(flight: FlightPlan) -> dict[str, CopterLimits]:
+    return {uav: dataclasses.replace(lim, **INSTANT) for uav, lim in flight.limits.items()}
 
 
 def measure(name: str, scenario: Scenario, speeds: tuple[float, ...]) -> list[Row]:
@@ -132,7 +158,8 @@ def measure(name: str, scenario: Scenario, speeds: tuple[float, ...]) -> list[Ro
             "order, no landing": last_arrival(flight, 0.0),
             "order, 2R down": last_arrival(flight, flight.altitude_m, two_r_down(flight)),
             "product": flight.duration_s,
-            COLUMNS[-1]: soonest(plans, at_speed).flight.duration_s,
+            COLUMNS[-2]: soonest(plans, at_speed).flight.duration_s,
+            COLUMNS[-1]: last_arrival(flight, 0.0, instant(flight), AT_ONCE),
         }
         rows.append(Row(name, len(scenario.uavs), speed, seconds))
     return rows
