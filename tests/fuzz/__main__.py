@@ -9,7 +9,7 @@ import sys
 import time
 from collections.abc import Iterable, Iterator
 
-from tests.fuzz.runner import Report, fly_seed
+from tests.fuzz.runner import Report, fly_seed, fly_seed_quietly
 
 DEFAULT_MAX_UAVS = 6
 
@@ -51,7 +51,7 @@ def _campaign(
         from dask.distributed import Client, as_completed
 
         with Client(scheduler) as client:
-            futures = [client.submit(fly_seed, s, max_uavs, pure=False) for s in seeds]
+            futures = [client.submit(fly_seed_quietly, s, max_uavs, pure=False) for s in seeds]
             for future in as_completed(futures):
                 yield future.result()
         return
@@ -59,10 +59,10 @@ def _campaign(
         from concurrent.futures import ProcessPoolExecutor
 
         with ProcessPoolExecutor(workers) as pool:
-            yield from pool.map(functools.partial(fly_seed, max_uavs=max_uavs), seeds)
+            yield from pool.map(functools.partial(fly_seed_quietly, max_uavs=max_uavs), seeds)
         return
     for seed in seeds:
-        yield fly_seed(seed, max_uavs)
+        yield fly_seed_quietly(seed, max_uavs)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
+import io
 import itertools
 import json
 import logging
@@ -144,6 +145,14 @@ def fly_seed(seed: int, max_uavs: int = 6) -> Report:
     """The seed's flight, in a data directory of its own (removed afterwards)."""
     with tempfile.TemporaryDirectory(prefix=f"fuzz-{seed}-") as tmp:
         return run(FuzzCase.draw(seed, max_uavs), Path(tmp) / "data")
+
+
+def fly_seed_quietly(seed: int, max_uavs: int = 6) -> Report:
+    """`fly_seed` without the lines each in-process service prints when it starts (where
+    its API and console are): a campaign prints its failing flights only. Here, not in
+    `__main__`, so that Dask workers can import it."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        return fly_seed(seed, max_uavs)
 
 
 def run(case: FuzzCase, data_dir: Path) -> Report:
