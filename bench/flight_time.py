@@ -23,10 +23,10 @@ and judges their safety with), with the plans `flight_speed.py` flies:
   them.
 
 - *instant, order*: the passing order kept by copters that change speed within a fraction
-  of a second (`INSTANT`; no reaction time or buffer either), a UAV out of the way the moment it
-  reaches its goal: against *plan*, what keeping the order itself costs; against *order,
-  no landing*, what stopping and starting copters for it costs (not one of the bounds
-  below: it can be sooner than *alone*).
+  of a second (`INSTANT`; no reaction time or buffer either), a UAV out of the way the
+  moment it reaches its goal: against *plan*, what keeping the order itself costs;
+  against *order, no landing*, what stopping and starting copters for it costs (not one
+  of the bounds below: it can be sooner than *alone*).
 
 Each column up to *product* is a lower bound on the ones after it. Run:
 
