@@ -153,12 +153,15 @@ class WaitOver(FleetEvent):
 class LeadTaken(FleetEvent):
     """A vehicle stood `past_m` past the place it was to wait at, inside an encounter
     (its stop came late): it goes first there, and the order is turned round for the
-    pairs `turned` (each: who now goes first, who now waits), `gcs.fleet.lead_taking`."""
+    pairs `turned` (each: who now goes first, who now waits), `gcs.fleet.lead_taking`.
+    `unheard`: its link went down while it flew on, `past_m` metres past that place
+    (below 0: short of it), so it goes first wherever the others can still wait."""
 
     kind = EventKind.LEAD_TAKEN
     uav_id: str
     past_m: float
     turned: tuple[tuple[str, str], ...]
+    unheard: bool = False
 
 
 @dataclass(frozen=True)

@@ -31,6 +31,10 @@ from gcs.fleet.member import Member
 from gcs.mission.geodesy import distance_m
 from gcs.mission.motion import Gate
 
+UNHEARD_S = 1.0
+"""Nothing heard from a vehicle for this long (about ten messages of its streams, a run
+that 20 % packet loss makes once in ten million), and it counts as flying on unheard."""
+
 
 @dataclass(frozen=True)
 class FlightReport:
@@ -145,9 +149,9 @@ class Follower:
                 m.actions.mission_speed_m_s = crew.flight.cruise_at(uav, m.along.s)
         gated = [uav for uav, m in crew.members.items() if self._gated(uav, m)]
         along = {uav: m.along for uav, m in crew.members.items()}
-        changes = crew.gatekeeper.decide(along, gated)
-        for uav, past, turned in crew.gatekeeper.leads_taken:
-            crew.bus.publish(LeadTaken(uav, past, tuple(turned)))
+        changes = crew.gatekeeper.decide(along, gated, unheard=self._flying_on_unheard())
+        for uav, past, turned, unheard in crew.gatekeeper.leads_taken:
+            crew.bus.publish(LeadTaken(uav, past, tuple(turned), unheard))
         crew.gatekeeper.leads_taken.clear()
         for change in changes:
             crew.commander.want(change.uav_id, change.gate, change.speed_m_s)
@@ -158,6 +162,24 @@ class Follower:
                 crew.bus.publish(
                     Waiting(change.uav_id, leader, how, change.gap_m, change.speed_m_s)
                 )
+
+    def _flying_on_unheard(self) -> list[str]:
+        """Vehicles flying their plans that nobody has heard for UNHEARD_S and that were
+        not stopped (a pause the vehicle acknowledged holds without the ground station;
+        anything else flies on, its mission going on without it). Not the link's 4 s:
+        by then a vehicle that others meet may be too close to stop for it (fuzzed
+        flight 1014 with uav4's link silent 5 s: uav3 could no longer wait)."""
+        crew, now = self.crew, asyncio.get_running_loop().time()
+        return [
+            uav
+            for uav, m in crew.members.items()
+            if crew.started
+            and now - m.link.state.last_heard > UNHEARD_S
+            and uav not in self.finished
+            and uav not in crew.withdrawn
+            and uav not in crew.held
+            and crew.commander.applied[uav] != Gate.STOP
+        ]
 
     def _gated(self, uav: str, member: Member) -> bool:
         """Whether the passing order commands this vehicle now: flying its plan, heard,

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs.fleet.lead_taking import CanWait, take_the_lead
+from gcs.fleet.lead_taking import CanWait, LeadTaken, lead_ahead, take_the_lead
 from gcs.fleet.path_progress import PathProgress
 from gcs.mavlink.actions import FlightActions
 from gcs.mavlink.errors import GcsError
@@ -65,19 +65,27 @@ class Gatekeeper:
         self.gone: set[str] = set()
         self._coming: PassingOrder | None = None  # a live replan's, while it is uploaded
         self._rest_from: dict[str, float] = {}  # where its rests begin, along today's paths
-        self.leads_taken: list[tuple[str, float, list[tuple[str, str]]]] = []
+        self.leads_taken: list[tuple[str, float, list[tuple[str, str]], bool]] = []
         """Vehicles that took the lead (`lead_taking`), how far past their limits they
-        stood, the pairs turned round; for the flight to report, then clear."""
+        stood, the pairs turned round, and whether because nobody heard them; for the
+        flight to report, then clear."""
+        self._unheard: set[str] = set()  # given the lead for the outage they are in
 
     def decide(
-        self, progress: Mapping[str, PathProgress], gated: Iterable[str], starting: bool = False
+        self,
+        progress: Mapping[str, PathProgress],
+        gated: Iterable[str],
+        starting: bool = False,
+        unheard: Iterable[str] = (),
     ) -> list[GateChange]:
         """New gates of the vehicles in `gated` (the others keep theirs); the changes.
         `starting`: they are about to be sent on from a hover, and a mission started from
         rest speeds up at once, so each is judged as speeding up at its acceleration
         (judged at rest, one with a limit 1.5 m ahead was let go and went on 5.6 m after
-        its pause: fuzzed flight 3585)."""
+        its pause: fuzzed flight 3585). `unheard`: vehicles whose link is down while
+        their missions fly them on (not stopped): each leads what it can, once an outage."""
         at = {uav: np.inf if uav in self.gone else p.s for uav, p in progress.items()}
+        self._let_the_unheard_lead(progress, at, set(unheard))
         self._let_the_stranded_lead(progress, at)
         chosen = [uav for uav in gated if uav not in self.gone]
         limits = {uav: self._limit(uav, at) for uav in chosen}
@@ -113,9 +121,26 @@ class Gatekeeper:
                 continue
             ends = {u: q.path.length for u, q in progress.items()}
             taken = take_the_lead(self.order, uav, at, ends, self._can_wait(progress))
-            if taken is not None:
-                self.order = taken.order
-                self.leads_taken.append((uav, past, taken.turned))
+            self._took(uav, past, taken, unheard=False)
+
+    def _let_the_unheard_lead(
+        self, progress: Mapping[str, PathProgress], at: Mapping[str, float], unheard: set[str]
+    ) -> None:
+        """A vehicle nobody hears while it flies on leads every encounter it has not left
+        behind, where the other can still wait for it (`lead_taking.lead_ahead`); once an
+        outage (heard again, it is judged afresh at its next one)."""
+        self._unheard &= unheard
+        ends = {u: q.path.length for u, q in progress.items()}
+        for uav in sorted(unheard - self._unheard - self.gone):
+            self._unheard.add(uav)
+            past = at[uav] - self.order.limit(uav, at).at_m
+            taken = lead_ahead(self.order, uav, at, ends, self._can_wait(progress))
+            self._took(uav, past, taken, unheard=True)
+
+    def _took(self, uav: str, past: float, taken: LeadTaken | None, unheard: bool) -> None:
+        if taken is not None:
+            self.order = taken.order
+            self.leads_taken.append((uav, past, taken.turned, unheard))
 
     def _can_wait(self, progress: Mapping[str, PathProgress]) -> CanWait:
         """Whether a vehicle can wait for another where an order has it wait: it can

@@ -13,6 +13,13 @@ a circle (the leader waits for it, it waits further on for a third, who waits fo
 leader). Each such circle is broken where one of its waits can be turned round too, and
 the new order is taken only if everyone then reaches their end (`PassingOrder.reach`);
 otherwise the order stays as it was.
+
+A vehicle whose link is down while it flies on cannot be stopped at all: its mission
+goes on without the ground station (ArduCopter's GCS failsafe is off by default). It is
+given the lead of every encounter it has not left behind, wherever the other can still
+wait for it (`lead_ahead`); the others then wait until it is heard past them (a link
+drop of 5 s let one fly 5 m into its encounter, and it was stopped there, in its leader's
+way: fuzzed flight 1014 with link drops, 0.65 m apart).
 """
 
 from __future__ import annotations
@@ -47,33 +54,77 @@ def take_the_lead(
     leads every encounter it stands inside; then every circle of waits is broken where a
     wait can be turned. None if a leader it stands before can no longer stop short, or
     a circle cannot be broken."""
-    turned: list[tuple[str, str]] = []
-
-    def turn(order: PassingOrder, follower: str, limit: Limit) -> PassingOrder | None:
-        leader = limit.leader
-        if leader is None or {follower, leader} in [set(pair) for pair in turned]:
-            return None  # a pair is turned once: turned back, it would go round for ever
-        swapped = order.swapped(follower, leader, limit.at_m)
-        if swapped is None or not can_wait(swapped, leader, follower):
-            return None
-        turned.append((follower, leader))
-        return swapped
-
+    turns = _Turns(can_wait)
     limit = order.limit(uav, at)
     while limit.at_m < at[uav]:
-        inside = turn(order, uav, limit)
+        inside = turns.turn(order, uav, limit)
         if inside is None:
             return None
         order, limit = inside, inside.limit(uav, at)
-    for _ in range(4 * len(at)):
-        circle = _circle(order, order.reach(at, ends), uav)
-        if circle is None:
-            return LeadTaken(order, turned)
-        broken = next((o for w in circle if (o := turn(order, *w)) is not None), None)
-        if broken is None:
+    return turns.without_circles(order, uav, at, ends)
+
+
+def lead_ahead(
+    order: PassingOrder,
+    uav: str,
+    at: Mapping[str, float],
+    ends: Mapping[str, float],
+    can_wait: CanWait,
+) -> LeadTaken | None:
+    """`uav`, which nobody can stop now (its link is down while it flies on, and its
+    mission goes on without the ground station), leads every encounter that neither it
+    nor the other has left behind, where the other can still wait for it; then every
+    circle of waits is broken as `take_the_lead` breaks them. None if nothing could be
+    turned, or a circle cannot be broken."""
+    turns = _Turns(can_wait)
+    for meeting in order.encounters(uav):
+        if meeting.last_m >= at[uav] and at.get(meeting.leader, 0.0) < meeting.cleared_m:
+            limit = Limit(meeting.first_m, meeting.leader)
+            order = turns.turn(order, uav, limit, once=False) or order
+    if not turns.turned:
+        return None
+    return turns.without_circles(order, uav, at, ends)
+
+
+class _Turns:
+    """Encounters turned round, each where the one who is to wait now can still wait;
+    a pair turned one way is never turned back (it would go round for ever)."""
+
+    def __init__(self, can_wait: CanWait) -> None:
+        self.can_wait = can_wait
+        self.turned: list[tuple[str, str]] = []
+
+    def turn(
+        self, order: PassingOrder, follower: str, limit: Limit, once: bool = True
+    ) -> PassingOrder | None:
+        """`follower` leads the encounter where it waits at `limit`; `once`: unless any
+        encounter of the pair was turned already (else: unless one was turned the other
+        way)."""
+        leader = limit.leader
+        back = (leader, follower) in self.turned
+        again = any({follower, leader} == set(pair) for pair in self.turned)
+        if leader is None or (again if once else back):
             return None
-        order = broken
-    return None
+        swapped = order.swapped(follower, leader, limit.at_m)
+        if swapped is None or not self.can_wait(swapped, leader, follower):
+            return None
+        self.turned.append((follower, leader))
+        return swapped
+
+    def without_circles(
+        self, order: PassingOrder, uav: str, at: Mapping[str, float], ends: Mapping[str, float]
+    ) -> LeadTaken | None:
+        """The order with every circle of waits broken where one of its waits can be
+        turned (None if one cannot be)."""
+        for _ in range(4 * len(at)):
+            circle = _circle(order, order.reach(at, ends), uav)
+            if circle is None:
+                return LeadTaken(order, self.turned)
+            broken = next((o for w in circle if (o := self.turn(order, *w)) is not None), None)
+            if broken is None:
+                return None
+            order = broken
+        return None
 
 
 def _circle(

@@ -219,6 +219,17 @@ class Waits:
 
 
 @dataclass(frozen=True)
+class Encounter:
+    """Where a follower waits for a leader: from `first_m` to `last_m` along its path,
+    until the leader is `cleared_m` along its own."""
+
+    leader: str
+    first_m: float
+    last_m: float
+    cleared_m: float
+
+
+@dataclass(frozen=True)
 class Limit:
     """How far a vehicle may go now, and who stops it there (None: nobody)."""
 
@@ -303,7 +314,7 @@ class PassingOrder:
         if wait is None:
             return None
         at = np.asarray(wait.at)
-        starts = np.concatenate([[0], np.flatnonzero(np.diff(at) > ENCOUNTER_GAP_M) + 1])
+        starts = _encounter_starts(at)
         first = starts[max(0, int(np.searchsorted(at[starts], limit_m, side="right")) - 1)]
         last = next((k for k in starts if k > first), len(at))
         turned = slice(first, last)
@@ -321,6 +332,17 @@ class PassingOrder:
         order = np.lexsort((new_after, new_at))
         waits[leader].append(Waits(follower, new_at[order], new_after[order], times[order]))
         return PassingOrder(waits, self.reach_m, self.step_m)
+
+    def encounters(self, follower: str) -> list[Encounter]:
+        """Each encounter in which `follower` waits, in the order of its waits."""
+        found = []
+        for wait in self.waits.get(follower, ()):
+            at, after = np.asarray(wait.at), np.asarray(wait.after)
+            starts = _encounter_starts(at)
+            for a, b in zip(starts, np.r_[starts[1:], len(at)], strict=True):
+                cleared = float(after[a:b].max())
+                found.append(Encounter(wait.leader, float(at[a]), float(at[b - 1]), cleared))
+        return found
 
     def reach(self, progress: Mapping[str, float], ends: Mapping[str, float]) -> dict[str, float]:
         """How far each UAV can get from `progress` under this order, whoever waits for
@@ -412,6 +434,12 @@ def _bound(
     if any(inside):
         return inside if inside_leads and not all(inside) else (False, False)
     return wait_a < committed_m[0], wait_b < committed_m[1]
+
+
+def _encounter_starts(at: Floats) -> Floats:
+    """Where each encounter of a wait begins (indices into its sorted `at`): the samples
+    of one are less than ENCOUNTER_GAP_M apart."""
+    return np.concatenate([[0], np.flatnonzero(np.diff(at) > ENCOUNTER_GAP_M) + 1])
 
 
 def _waits(at: Floats, after: Floats, leaves: Floats, arrives: Floats, step_m: float) -> Found:

@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, note, settings
 from hypothesis import strategies as st
 
 from gcs.fleet.gatekeeper import Gatekeeper
-from gcs.fleet.lead_taking import take_the_lead
+from gcs.fleet.lead_taking import lead_ahead, take_the_lead
 from gcs.mission.motion import CopterLimits, Gate
 from gcs.mission.passing_order import PassingOrder, PlannedPath, Waits
 from tests.unit.test_passing_order import PLANS, _crossing_pair, _path, fly_adversary, planned
@@ -38,7 +38,8 @@ def test_a_vehicle_stopped_inside_its_encounter_goes_first_and_its_leader_waits(
 
     keeper.decide(progress, ["a", "b"])
 
-    [(uav, past, turned)] = keeper.leads_taken
+    [(uav, past, turned, unheard)] = keeper.leads_taken
+    assert not unheard
     assert (uav, turned) == ("b", [("b", "a")])
     assert past == pytest.approx(2.0)
     assert keeper.gates["b"] == Gate.GO
@@ -85,7 +86,7 @@ def test_a_leader_standing_inside_the_encounter_waits_there_if_passed_far_enough
 
     keeper.decide(progress, ["a", "b"])
 
-    assert [uav for uav, _, _ in keeper.leads_taken] == (["b"] if taken else [])
+    assert [uav for uav, *_ in keeper.leads_taken] == (["b"] if taken else [])
 
 
 def test_only_the_encounter_it_stands_in_is_turned() -> None:
@@ -105,6 +106,64 @@ def test_only_the_encounter_it_stands_in_is_turned() -> None:
     second = turned.limit("b", {"a": 60.0})
     assert second.leader == "a" and 200.0 < second.at_m < 250.0 - 6.0
     assert order.limit("b", {"a": 0.0}) == first  # the order it came from is unchanged
+
+
+def test_a_vehicle_unheard_while_it_flies_on_goes_first_and_its_leader_waits() -> None:
+    """b's link is down 10 m short of where it was to wait for a: its mission flies it on
+    through the crossing whatever the ground station says (fuzzed flight 1014 with link
+    drops: 5 m into its encounter when heard again, stopped there, and passed 0.65 m
+    away). a, still 30 m off, waits short of the crossing until b is heard past it; once
+    an outage, and a vehicle heard again is judged afresh."""
+    paths, keeper = _crossing()
+    limit = keeper.order.limit("b", {"a": 20.0, "b": 0.0}).at_m
+    progress = _flying(paths, {"a": 20.0, "b": limit - 10.0})
+
+    keeper.decide(progress, ["a"], unheard=["b"])
+
+    [(uav, past, turned, unheard)] = keeper.leads_taken
+    assert (uav, turned, unheard) == ("b", [("b", "a")], True)
+    assert past == pytest.approx(-10.0)
+    a_limit = keeper.order.limit("a", {"a": 20.0, "b": limit - 10.0})
+    assert a_limit.leader == "b" and a_limit.at_m <= 50.0 - 6.0
+    progress["a"].s = a_limit.at_m - 1.0
+    [change] = keeper.decide(progress, ["a"], unheard=["b"])
+    assert (change.uav_id, change.gate, change.waits_for) == ("a", Gate.STOP, "b")
+    assert len(keeper.leads_taken) == 1  # once an outage
+    progress["b"].s = 50.0 + 7.0  # heard again, through
+    [change] = keeper.decide(progress, ["a", "b"])
+    assert (change.uav_id, change.gate) == ("a", Gate.GO)
+
+
+def test_an_unheard_vehicle_does_not_lead_where_its_leader_cannot_stop_short() -> None:
+    """a, 8 m from the crossing at 5 m/s, can no longer stop short of it: the order
+    stays (b, unheard, cannot be stopped either: nothing the ground station can do)."""
+    paths, keeper = _crossing()
+    order = keeper.order
+    limit = order.limit("b", {"a": 42.0, "b": 0.0}).at_m
+    progress = _flying(paths, {"a": 42.0, "b": limit - 10.0})
+
+    keeper.decide(progress, ["a"], unheard=["b"])
+
+    assert keeper.order is order and keeper.leads_taken == []
+
+
+def test_an_unheard_vehicle_leads_every_encounter_it_has_not_left_behind() -> None:
+    """b crosses a's path twice, both times after a; unheard before the first, it leads
+    both (a can stop short of each), and nobody waits for it any more."""
+    a = _path("a", [[0.0, 0.0], [200.0, 0.0]], 10.0)
+    b = _path("b", [[50.0, -50.0], [50.0, 50.0], [150.0, 50.0], [150.0, -50.0]], 5.0)
+    order = PassingOrder.derive([a, b], margin_m=0.5)
+    assert len(order.encounters("b")) == 2
+    at, ends = {"a": 0.0, "b": 10.0}, {"a": a.length, "b": b.length}
+
+    taken = lead_ahead(order, "b", at, ends, lambda *_: True)
+
+    assert taken is not None and taken.turned == [("b", "a"), ("b", "a")]
+    assert taken.order.encounters("b") == []
+    assert [e.leader for e in taken.order.encounters("a")] == ["b", "b"]
+    assert lead_ahead(order, "b", {"a": 0.0, "b": b.length}, ends, lambda *_: True) is None
+    passed_first = lead_ahead(order, "b", {"a": 100.0, "b": 10.0}, ends, lambda *_: True)
+    assert passed_first is not None and passed_first.turned == [("b", "a")]  # a is past one
 
 
 def _waits(leader: str, at: float | np.ndarray, after: float) -> Waits:
