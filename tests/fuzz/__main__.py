@@ -20,12 +20,15 @@ def main(argv: list[str] | None = None) -> int:
     which.add_argument("--seed", type=int, help="replay one flight and say what it saw")
     which.add_argument("--seeds", help="a campaign: A:B flies seeds A to B-1")
     parser.add_argument("--max-uavs", type=int, default=DEFAULT_MAX_UAVS)
+    parser.add_argument(
+        "--link-drops", action="store_true", help="one vehicle's link silent for a while"
+    )
     parser.add_argument("--trace", action="store_true", help="print every event of the flight")
     parser.add_argument("--workers", type=int, default=1, help="local processes (campaign)")
     parser.add_argument("--scheduler", help="a Dask scheduler's address (campaign)")
     args = parser.parse_args(argv)
     if args.seed is not None:
-        report = fly_seed(args.seed, args.max_uavs)
+        report = fly_seed(args.seed, args.max_uavs, args.link_drops)
         if args.trace:
             print(report.trace())
         print(report.summary())
@@ -34,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     seeds = range(first, last)
     failed = 0
-    for report in _campaign(seeds, args.max_uavs, args.workers, args.scheduler):
+    for report in _campaign(seeds, args.max_uavs, args.link_drops, args.workers, args.scheduler):
         if report.violations:
             failed += 1
             print(report.summary(), flush=True)
@@ -44,14 +47,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _campaign(
-    seeds: Iterable[int], max_uavs: int, workers: int, scheduler: str | None
+    seeds: Iterable[int], max_uavs: int, link_drops: bool, workers: int, scheduler: str | None
 ) -> Iterator[Report]:
     """Each seed's report as it comes (in any order off this process)."""
+    fly = functools.partial(fly_seed_quietly, max_uavs=max_uavs, link_drops=link_drops)
     if scheduler is not None:
         from dask.distributed import Client, as_completed
 
         with Client(scheduler) as client:
-            futures = [client.submit(fly_seed_quietly, s, max_uavs, pure=False) for s in seeds]
+            futures = [client.submit(fly, s, pure=False) for s in seeds]
             for future in as_completed(futures):
                 yield future.result()
         return
@@ -59,10 +63,10 @@ def _campaign(
         from concurrent.futures import ProcessPoolExecutor
 
         with ProcessPoolExecutor(workers) as pool:
-            yield from pool.map(functools.partial(fly_seed_quietly, max_uavs=max_uavs), seeds)
+            yield from pool.map(fly, seeds)
         return
     for seed in seeds:
-        yield fly_seed_quietly(seed, max_uavs)
+        yield fly(seed)
 
 
 if __name__ == "__main__":

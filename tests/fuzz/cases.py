@@ -20,6 +20,8 @@ ORIGIN = load_case("case-6").origin
 LATE_TAKE_OFF_S = 15.0
 VEHICLE_ACTIONS = ("hold", "continue", "land", "rtl")
 FLEET_ACTIONS = ("pause", "continue", "abort-land", "abort-rtl", "object", "restart")
+LINK_DROPS_S = (2.0, 5.0, 10.0)
+"""How long a vehicle's link is silent, both ways, in a flight with link drops."""
 
 
 @dataclass(frozen=True)
@@ -30,11 +32,13 @@ class Action:
     kind: str
     uav: int | None = None  # the vehicle (sysid) of a per-vehicle action
     cell: tuple[int, int] | None = None  # where an object is reported
+    seconds: float | None = None  # how long a link drop lasts ("silence")
 
     def describe(self) -> str:
         who = f" uav{self.uav}" if self.uav is not None else ""
         where = f" at {self.cell}" if self.cell is not None else ""
-        return f"{self.kind}{who}{where} at {self.at_s:.1f} s"
+        lasting = f" for {self.seconds:g} s" if self.seconds is not None else ""
+        return f"{self.kind}{who}{where}{lasting} at {self.at_s:.1f} s"
 
 
 @dataclass(frozen=True)
@@ -51,7 +55,9 @@ class FuzzCase:
     resume: bool = False  # after a restart, the operator resumes the flight (else aborts)
 
     @classmethod
-    def draw(cls, seed: int, max_uavs: int = 6) -> FuzzCase:
+    def draw(cls, seed: int, max_uavs: int = 6, link_drops: bool = False) -> FuzzCase:
+        """The seed's flight; `link_drops`: with one vehicle's link silent for a while
+        (drawn on a stream of its own: the rest of the flight is the seed's as without)."""
         rng = np.random.default_rng([seed, 0xF1])
         family = FAMILIES[int(rng.integers(len(FAMILIES)))]
         uavs = int(rng.integers(1, max_uavs // 2 + 1)) * 2  # even: gap swaps need pairs
@@ -66,6 +72,8 @@ class FuzzCase:
         )  # fmt: skip
         resume = bool(np.random.default_rng([seed, 0xF2]).random() < 0.5)  # its own stream:
         # the seeds drawn before it still draw the same flights
+        if link_drops:
+            actions = tuple(sorted((*actions, _link_drop(seed, uavs)), key=lambda a: a.at_s))
         return cls(
             seed, family, size, uavs, float(rng.choice([5.0, 10.0])), faults, late, actions,
             float(rng.choice([0.0, 0.002, 0.02])), resume,
@@ -120,6 +128,12 @@ def _action(rng: np.random.Generator, uavs: int, size: int) -> Action:
     kind = FLEET_ACTIONS[int(rng.integers(len(FLEET_ACTIONS)))]
     cell = (int(rng.integers(size)), int(rng.integers(size))) if kind == "object" else None
     return Action(at, kind, cell=cell)
+
+
+def _link_drop(seed: int, uavs: int) -> Action:
+    rng = np.random.default_rng([seed, 0xF3])
+    at, uav = float(rng.uniform(3.0, 40.0)), int(rng.integers(1, uavs + 1))
+    return Action(at, "silence", uav=uav, seconds=float(rng.choice(LINK_DROPS_S)))
 
 
 def _gap_swap_fits(size: int, uavs: int) -> bool:

@@ -73,6 +73,9 @@ ARRIVED_M = 1.0  # within this of its goal, a vehicle has arrived
 GOAL_RADIUS_M = 2.0  # ArduCopter's WP_RADIUS_M: a mission's goal is reached within it
 WATCH_EVERY_S = 0.1
 END_WITHIN_S = 900.0
+LINK_BACK_S = 5.0
+"""After a link drop, the link is taken up again within this (the service's heartbeat
+comes within 1 s, and a command under way still runs out its attempts)."""
 REABORT_S = 300.0
 """An abort that has not brought everyone down by then (held after it, say) is given again."""
 RESUME_AFTER_S = 30.0
@@ -137,22 +140,23 @@ class Report:
         lines += [f"  - {v}" for v in self.violations]
         lines += [f"  . {n}" for n in self.notes]
         if self.violations:
-            lines.append(f"  replay: python -m tests.fuzz --seed {self.case.seed}")
+            drops = " --link-drops" if any(a.kind == "silence" for a in self.case.actions) else ""
+            lines.append(f"  replay: python -m tests.fuzz --seed {self.case.seed}{drops}")
         return "\n".join(lines)
 
 
-def fly_seed(seed: int, max_uavs: int = 6) -> Report:
+def fly_seed(seed: int, max_uavs: int = 6, link_drops: bool = False) -> Report:
     """The seed's flight, in a data directory of its own (removed afterwards)."""
     with tempfile.TemporaryDirectory(prefix=f"fuzz-{seed}-") as tmp:
-        return run(FuzzCase.draw(seed, max_uavs), Path(tmp) / "data")
+        return run(FuzzCase.draw(seed, max_uavs, link_drops), Path(tmp) / "data")
 
 
-def fly_seed_quietly(seed: int, max_uavs: int = 6) -> Report:
+def fly_seed_quietly(seed: int, max_uavs: int = 6, link_drops: bool = False) -> Report:
     """`fly_seed` without the lines each in-process service prints when it starts (where
     its API and console are): a campaign prints its failing flights only. Here, not in
     `__main__`, so that Dask workers can import it."""
     with contextlib.redirect_stdout(io.StringIO()):
-        return fly_seed(seed, max_uavs)
+        return fly_seed(seed, max_uavs, link_drops)
 
 
 def run(case: FuzzCase, data_dir: Path) -> Report:
@@ -233,6 +237,7 @@ class Flight:
         self.standing_at: dict[int, tuple[float, float]] = {}  # where each came to stand
         self.still_since: dict[int, float] = {}  # since when each held one is slow
         self.arrived: dict[int, float] = {}  # sysid: loop time over its goal
+        self.silent: dict[int, tuple[float, float]] = {}  # link dropped, then taken up again
         self._sent_at = 0.0
 
     async def fly(self) -> Report:
@@ -333,6 +338,12 @@ class Flight:
 
     async def _act(self, action: Action) -> None:
         flight = f"/flights/{self.flight_id}"
+        if action.kind == "silence":  # the radio, not the operator: nothing to answer
+            assert self.sim is not None and action.uav is not None and action.seconds
+            now = asyncio.get_running_loop().time()
+            self.sim.silence(action.uav, action.seconds)
+            self.silent[action.uav] = (now, now + action.seconds + LINK_BACK_S)
+            return
         self._supersede(action)
         self._sent_at = asyncio.get_running_loop().time()
         if action.kind == "restart":
@@ -379,6 +390,8 @@ class Flight:
         for vehicle in vehicles:
             if any(w in vehicle["detail"] for w in ("unreachable", "offline", "not commanded")):
                 continue  # not online, or out of the flight (sent down or home before)
+            if self._was_silent(vehicle["uav_id"]):
+                continue  # its link dropped meanwhile: not reachable
             if not vehicle["ok"]:
                 self.report.violations.append(
                     f"{action.describe()}: {vehicle['uav_id'] or vehicle['vehicle_id']} "
@@ -393,6 +406,17 @@ class Flight:
         if action.kind in _LANDINGS:
             down, due = frozenset({"LAND", "down"}), self._sent_at + LANDING_WITHIN_S
             self.due += [_Due(action, sysid, down, due, LANDING_WITHIN_S) for sysid in reached]
+
+    def _was_silent(self, uav_id: str | None) -> bool:
+        """Whether the vehicle's link was dropped at any time since the command was sent."""
+        if not uav_id:
+            return False
+        window = self.silent.get(int(uav_id.removeprefix("uav")))
+        return (
+            window is not None
+            and window[0] <= asyncio.get_running_loop().time()
+            and (window[1] >= self._sent_at)
+        )
 
     def _supersede(self, action: Action) -> None:
         """A new command to a vehicle replaces what the last one was to do there."""
