@@ -82,8 +82,9 @@ class Gatekeeper:
         `starting`: they are about to be sent on from a hover, and a mission started from
         rest speeds up at once, so each is judged as speeding up at its acceleration
         (judged at rest, one with a limit 1.5 m ahead was let go and went on 5.6 m after
-        its pause: fuzzed flight 3585). `unheard`: vehicles whose link is down while
-        their missions fly them on (not stopped): each leads what it can, once an outage."""
+        its pause: fuzzed flight 3585). `unheard`: vehicles nobody has heard lately
+        while their missions fly them on (not stopped): each leads what it can, once an
+        outage."""
         at = {uav: np.inf if uav in self.gone else p.s for uav, p in progress.items()}
         self._let_the_unheard_lead(progress, at, set(unheard))
         self._let_the_stranded_lead(progress, at)
