@@ -144,15 +144,20 @@ class Follower:
     def _keep_order(self) -> None:
         """Stop, release or edge up the vehicles the passing order says (`gatekeeper`)."""
         crew = self.crew
+        heard = set()
         for uav, m in crew.members.items():
             if m.along.update(m.link.state):
                 m.actions.mission_speed_m_s = crew.flight.cruise_at(uav, m.along.s)
+                heard.add(uav)
         gated = [uav for uav, m in crew.members.items() if self._gated(uav, m)]
         along = {uav: m.along for uav, m in crew.members.items()}
-        changes = crew.gatekeeper.decide(along, gated, unheard=self._flying_on_unheard())
+        now = asyncio.get_running_loop().time()
+        changes = crew.gatekeeper.decide(along, gated, unheard=self._flying_on_unheard(), now=now)
         for uav, past, turned, unheard in crew.gatekeeper.leads_taken:
             crew.bus.publish(LeadTaken(uav, past, tuple(turned), unheard))
         crew.gatekeeper.leads_taken.clear()
+        for uav in heard.intersection(gated):
+            crew.commander.heard(uav)
         for change in changes:
             crew.commander.want(change.uav_id, change.gate, change.speed_m_s)
             if change.gate == Gate.GO:

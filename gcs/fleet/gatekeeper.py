@@ -28,7 +28,7 @@ import numpy as np
 from gcs.fleet.lead_taking import CanWait, LeadTaken, lead_ahead, take_the_lead
 from gcs.fleet.path_progress import PathProgress
 from gcs.mavlink.actions import FlightActions
-from gcs.mavlink.errors import GcsError
+from gcs.mavlink.errors import GcsError, LinkError
 from gcs.mission.motion import CopterLimits, Gate, StoppingRule
 from gcs.mission.passing_order import Limit, PassingOrder
 
@@ -36,6 +36,10 @@ STRANDED_M = 0.5
 """A vehicle stopped this far past its limit or more is inside the encounter it was to
 wait short of (a pause lost again and again): it leads it instead."""
 STOPPED_M_S = 0.2
+FRESH_S = 0.25
+"""A position this old is as fresh as the streams make them (GLOBAL_POSITION_INT at
+5 Hz, 4 Hz by the older stream request): the stopping rule's reaction time allows for
+it, and only what a position is older than this is reckoned on (`Gatekeeper._reckoned`)."""
 
 
 @dataclass(frozen=True)
@@ -77,6 +81,7 @@ class Gatekeeper:
         gated: Iterable[str],
         starting: bool = False,
         unheard: Iterable[str] = (),
+        now: float | None = None,
     ) -> list[GateChange]:
         """New gates of the vehicles in `gated` (the others keep theirs); the changes.
         `starting`: they are about to be sent on from a hover, and a mission started from
@@ -84,7 +89,8 @@ class Gatekeeper:
         (judged at rest, one with a limit 1.5 m ahead was let go and went on 5.6 m after
         its pause: fuzzed flight 3585). `unheard`: vehicles nobody has heard lately
         while their missions fly them on (not stopped): each leads what it can, once an
-        outage."""
+        outage. `now`: the loop time, to judge each vehicle where it may be by then
+        (`_reckoned`)."""
         at = {uav: np.inf if uav in self.gone else p.s for uav, p in progress.items()}
         self._let_the_unheard_lead(progress, at, set(unheard))
         self._let_the_stranded_lead(progress, at)
@@ -94,20 +100,42 @@ class Gatekeeper:
         changes = []
         for uav in chosen:
             p, limit = progress[uav], limits[uav]
-            gap = limit.at_m - p.s
+            s, speed = self._reckoned(uav, p, now)
+            gap = limit.at_m - s
             waited, own = uav in waited_on, self.limits[uav]
             accel = own.accel_m_s2 if starting else p.accel
             gate = self.rule.decide(
-                self.gates[uav], gap, p.speed, accel, own, waited, self.approach.get(uav)
+                self.gates[uav], gap, speed, accel, own, waited, self.approach.get(uav)
             )
             waits_for = limit.leader if gate != Gate.GO else None
             if gate == Gate.CREEP and self.gates[uav] != Gate.CREEP:
                 self.approach[uav] = self.rule.approach_speed(gap, own, waited)
             if gate != self.gates[uav] or waits_for != self.waits_for[uav]:
-                speed = self.approach.get(uav) if gate == Gate.CREEP else None
-                changes.append(GateChange(uav, gate, waits_for, gap, speed))
+                approach = self.approach.get(uav) if gate == Gate.CREEP else None
+                changes.append(GateChange(uav, gate, waits_for, gap, approach))
             self.gates[uav], self.waits_for[uav] = gate, waits_for
         return changes
+
+    def _reckoned(self, uav: str, p: PathProgress, now: float | None) -> tuple[float, float]:
+        """Where along its path a vehicle may be by `now`, and how fast: its last place
+        and speed, flown on for what the position is older than FRESH_S, speeding up as
+        it was (up to its cruise). Judged where it was last heard, one whose positions
+        were lost for 1.2 s while it sped up from 6.9 m/s was taken for 10 m behind where
+        it was; its pause came too late, and it stopped 3.8 m past the place it was to
+        wait short of, 5.66 m from the vehicle it waited for (the gap swap at 10 m/s
+        with 20 % packet loss both ways). Only a vehicle's own gap is reckoned: the
+        vehicles others wait for count where they were last heard, which is never
+        further on than they are."""
+        late = 0.0 if now is None or p.heard_at is None else now - p.heard_at - FRESH_S
+        if late <= 0.0:
+            return p.s, p.speed
+        own = self.limits[uav]
+        rising = min(max(p.accel, 0.0), own.accel_m_s2)
+        top = max(p.speed, own.speed_m_s)
+        rise_s = min(late, (top - p.speed) / rising) if rising > 0.0 else 0.0
+        speed = p.speed + rising * rise_s
+        flown = (p.speed + speed) / 2 * rise_s + speed * (late - rise_s)
+        return min(p.s + flown, p.path.length), speed
 
     def _let_the_stranded_lead(
         self, progress: Mapping[str, PathProgress], at: Mapping[str, float]
@@ -220,6 +248,7 @@ class GateCommander:
         self._slowed: dict[str, float | None] = {}  # the approach speed last commanded
         self._tasks: dict[str, asyncio.Task[None]] = {}
         self._braking: set[str] = set()  # to be stopped out of their missions
+        self._unanswered: set[str] = set()  # changes given up: the vehicle did not answer
 
     def want(self, uav_id: str, gate: Gate, speed_m_s: float | None = None) -> None:
         """Bring the vehicle to `gate` (approaching at `speed_m_s`, a CREEP's)."""
@@ -281,6 +310,15 @@ class GateCommander:
             with contextlib.suppress(asyncio.CancelledError, GcsError):
                 await task
 
+    def heard(self, uav_id: str) -> None:
+        """The vehicle was heard again: a change given up because it did not answer is
+        tried again (fuzzed flight 1014 with uav4's link silent 5 s: the pause decided
+        while nobody heard it failed, and once heard it flew on past its limit, 2.32 m
+        from uav1, its gate taken as in force)."""
+        if uav_id in self._unanswered and not self._brought(uav_id):
+            self.want(uav_id, self._wanted[uav_id])
+        self._unanswered.discard(uav_id)
+
     def _brought(self, uav_id: str) -> bool:
         """At its gate; one to be braked only once braked (a brake asked for while a
         pause was under way was taken as done by the pause's end: its mission, given
@@ -296,6 +334,8 @@ class GateCommander:
                 await self._change(uav_id, self.applied[uav_id], target)
             except GcsError as exc:
                 self._on_failure(uav_id, f"could not {target.value}: {exc}")
+                if isinstance(exc, TimeoutError | LinkError):
+                    self._unanswered.add(uav_id)
                 return
             self.applied[uav_id] = target
 

@@ -35,6 +35,7 @@ class PathProgress:
         self.speed = 0.0
         self.accel = 0.0
         self.s = 0.0
+        self.heard_at: float | None = None  # loop time the latest position was heard
         self._time_ms: int | None = None
         self.restart(path)
 
@@ -54,6 +55,7 @@ class PathProgress:
             elapsed = max(0.0, (position.time_boot_ms - self._time_ms) / 1000.0)
             reach += 2.0 * max(speed, self.speed) * elapsed
         self._time_ms = position.time_boot_ms
+        self.heard_at = state.position_heard
         self.speed = speed
         self.s = max(self.s, self._project(here, self.s - BACKWARDS_M, self.s + reach))
         return True
@@ -71,6 +73,7 @@ class PathProgress:
         self.s = max(lo_m, self._project(here, lo_m - BACKWARDS_M, hi_m + LOOK_AHEAD_M))
         self.speed = float(np.hypot(*state.velocity_n_e_m_s))
         self._time_ms = position.time_boot_ms
+        self.heard_at = state.position_heard
 
     def restart(
         self, path: PlannedPath, state: VehicleState | None = None, within_m: float = 0.0

@@ -14,6 +14,7 @@ from typing import cast
 
 from gcs.fleet.gatekeeper import GateCommander
 from gcs.mavlink.actions import FlightActions
+from gcs.mavlink.errors import CommandTimeoutError
 from gcs.mission.motion import Gate, StoppingRule
 
 
@@ -140,4 +141,32 @@ async def test_a_brake_asked_for_while_a_pause_is_under_way_still_brakes() -> No
     link.released.set()
     await settled(commander)
     assert link.sent == ["pause", "brake"], link.sent
+    await commander.close()
+
+
+class SilentThenHeard(Recorder):
+    """A vehicle whose first pause goes unanswered (its link silent), the rest answered."""
+
+    async def pause_mission(self) -> str:
+        if "lost" not in self.sent:
+            self.sent.append("lost")
+            raise CommandTimeoutError(1, 193, None, detail="not answered")
+        return await super().pause_mission()
+
+
+async def test_a_change_the_vehicle_did_not_answer_is_tried_again_once_it_is_heard() -> None:
+    """Fuzzed flight 1014 with uav4's link silent 5 s: the pause decided while nobody
+    heard it went unanswered; the gate was taken as in force, and the vehicle, heard
+    again, flew on past its limit to 2.32 m from another."""
+    link = SilentThenHeard()
+    commander = commanding(link)
+    commander.want("uav1", Gate.STOP)
+    await settled(commander)
+    assert link.sent == ["lost"]
+    commander.heard("uav1")
+    await settled(commander)
+    assert link.sent == ["lost", "pause"]
+    commander.heard("uav1")  # heard again: nothing more to do
+    await settled(commander)
+    assert link.sent == ["lost", "pause"]
     await commander.close()
