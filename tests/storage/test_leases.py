@@ -40,11 +40,11 @@ async def test_one_holder_at_a_time_until_its_lease_runs_out(db: Database) -> No
     assert not await b.claim_flight(fid)  # a lives
     assert await a.claim_flight(fid)  # its own: kept
     assert await b.holder_of(fid) == (A, True)
-    assert await b.orphans() == []
+    assert (await b.renew()).orphans == []
 
     dead_a = LeaseRepository(db, A, RUN_OUT)
     assert (await dead_a.renew()).flights == {fid}  # a renews, but too short
-    assert [row.id for row in await b.orphans()] == [fid]
+    assert [row.id for row in (await b.renew()).orphans] == [fid]
     assert await b.holder_of(fid) == (A, False)
     assert await b.claim_flight(fid)
     assert await a.holder_of(fid) == (B, True)
@@ -60,8 +60,9 @@ async def test_orphans_are_open_flights_of_dead_holders_only(db: Database) -> No
         assert await dead_a.claim_flight(fid)
     unowned = await _flight(db, plan_id, F.INTERRUPTED)
     b = LeaseRepository(db, B, LEASE_S)
-    assert [row.id for row in await b.orphans()] == [ids[F.FLYING]]  # not ended, not unowned
-    assert await dead_a.orphans() == []  # never its own
+    orphans = (await b.renew()).orphans
+    assert [row.id for row in orphans] == [ids[F.FLYING]]  # not ended, not unowned
+    assert (await dead_a.renew()).orphans == []  # never its own
     assert await b.claim_flight(unowned)  # nobody's: anyone may take it
 
 
@@ -71,7 +72,7 @@ async def test_a_clean_stop_releases_at_once(db: Database) -> None:
     a, b = LeaseRepository(db, A, LEASE_S), LeaseRepository(db, B, LEASE_S)
     assert await a.claim_flight(fid)
     await a.release()
-    assert [row.id for row in await b.orphans()] == [fid]
+    assert [row.id for row in (await b.renew()).orphans] == [fid]
 
 
 async def test_a_job_is_claimed_once_and_a_dead_holders_job_is_interrupted(db: Database) -> None:
@@ -82,12 +83,12 @@ async def test_a_job_is_claimed_once_and_a_dead_holders_job_is_interrupted(db: D
     assert await a.claim_job(job.id)
     assert not await b.claim_job(job.id)
     assert not await a.claim_job(job.id)  # claimed: no longer queued for anyone
-    assert await b.interrupt_orphan_jobs() == 0  # a lives
+    assert (await b.renew()).interrupted_jobs == 0  # a lives
     assert (await a.renew()).jobs == 1
 
     other = await jobs.add(JobRow(scenario_id=sid, settings={}))
     assert await LeaseRepository(db, A, RUN_OUT).claim_job(other.id)
-    assert await b.interrupt_orphan_jobs() == 1
+    assert (await b.renew()).interrupted_jobs == 1
     assert (await jobs.get(other.id)).state == JobState.INTERRUPTED
     assert (await jobs.get(job.id)).state == JobState.QUEUED
 

@@ -126,9 +126,8 @@ class FlightControl:
         self._fresh_until = asked + self.leases.lease_s
         for flight_id in sorted(set(self.flights.book.active) - renewal.flights):
             await self._let_go(flight_id)
-        await self.leases.interrupt_orphan_jobs()
         await self.sync_vehicles()
-        for row in await self.leases.orphans():
+        for row in renewal.orphans:
             await self.take_over(row)
 
     # --- requests -------------------------------------------------------------------------

@@ -73,10 +73,14 @@ class Holder:
 
 @dataclass(frozen=True)
 class Renewal:
-    """What one renewal found: the open flights this service still holds."""
+    """What one renewal found: the open flights this service still holds, how many jobs
+    it renewed, how many jobs of dead services it interrupted, and the open flights dead
+    services left (`orphans`)."""
 
     flights: frozenset[str]
     jobs: int
+    interrupted_jobs: int
+    orphans: list[FlightRow]
 
 
 class LeaseRepository:
@@ -104,14 +108,6 @@ class LeaseRepository:
                 )
             )
             return rowcount(claimed) == 1
-
-    async def orphans(self) -> list[FlightRow]:
-        """Open flights whose holder's lease has run out (another service's, dead)."""
-        return await self.db.run(self._orphans)
-
-    def _orphans(self) -> list[FlightRow]:
-        with self.db.session() as s:
-            return list(s.scalars(_ORPHANS, {"holder": self.holder.id, "now": now()}))
 
     async def release(self) -> None:
         """Let every flight this service holds go at once (a clean stop): another service
@@ -146,27 +142,23 @@ class LeaseRepository:
             )
             return rowcount(claimed) == 1
 
-    async def interrupt_orphan_jobs(self) -> int:
-        """Jobs whose service died: `interrupted` (never run again elsewhere)."""
-        return await self.db.run(self._interrupt_orphan_jobs)
-
-    def _interrupt_orphan_jobs(self) -> int:
-        with self.db.session() as s:
-            values = {"holder": self.holder.id, "now": now(), "updated": now()}
-            return rowcount(s.execute(_INTERRUPT_ORPHAN_JOBS, values))
-
     # --- both --------------------------------------------------------------------------------
 
     async def renew(self) -> Renewal:
-        """Push this service's leases on; the open flights it still holds."""
+        """Push this service's leases on, interrupt the jobs of dead services and find the
+        flights they left: what a service does once a `renew_s`, in one transaction."""
         return await self.db.run(self._renew)
 
     def _renew(self) -> Renewal:
-        values = {"holder": self.holder.id, "until": self._until()}
+        holder, moment = self.holder.id, now()
+        renewing = {"holder": holder, "until": moment + timedelta(seconds=self.lease_s)}
+        dead = {"holder": holder, "now": moment}
         with self.db.session() as s:
-            s.execute(_RENEW_FLIGHTS, values)
-            jobs = rowcount(s.execute(_RENEW_JOBS, values))
-            return Renewal(frozenset(s.scalars(_HELD, values)), jobs)
+            s.execute(_RENEW_FLIGHTS, renewing)
+            jobs = rowcount(s.execute(_RENEW_JOBS, renewing))
+            held = frozenset(s.scalars(_HELD, renewing))
+            interrupted = rowcount(s.execute(_INTERRUPT_ORPHAN_JOBS, {**dead, "updated": moment}))
+            return Renewal(held, jobs, interrupted, list(s.scalars(_ORPHANS, dead)))
 
     async def holder_of(self, flight_id: str) -> tuple[Holder | None, bool]:
         """Who holds the flight, and whether their lease is still running."""
