@@ -45,7 +45,6 @@ from gcs.service.vehicle_registry import VehicleRegistry
 
 log = logging.getLogger("mvo_gcs.control")
 F = FlightState
-MAX_VEHICLES = 10_000  # as many as the service connects to when it starts
 TAKEN_IN_THE_AIR = frozenset({F.UPLOADING, F.STARTING, F.FLYING, F.PAUSED})
 """States a dead service's follower kept; nobody follows them now: `interrupted`."""
 
@@ -224,13 +223,13 @@ class FlightControl:
         deleted there: every service is ready to take any flight over. Under the
         registry's registration lock, so that no registration here is half seen."""
         async with self.registry.registering:
-            stored = {row.id: row for row in await self.vehicles.page(limit=MAX_VEHICLES)}
-            known = self.registry.known()
-            for vehicle_id in sorted(stored.keys() - known):
-                row = stored[vehicle_id]
-                signing = Signing.from_text(row.signing_key) if row.signing_key else None
-                self.registry.add(row.id, row.connection, row.sysid, signing)
-            for vehicle_id in sorted(known - stored.keys()):
+            stored, known = await self.vehicles.ids(), self.registry.known()
+            for vehicle_id in sorted(stored - known):
+                with contextlib.suppress(NotFound):  # deleted meanwhile
+                    row = await self.vehicles.get(vehicle_id)
+                    signing = Signing.from_text(row.signing_key) if row.signing_key else None
+                    self.registry.add(row.id, row.connection, row.sysid, signing)
+            for vehicle_id in sorted(known - stored):
                 await self.registry.remove(vehicle_id)
 
     async def _let_go(self, flight_id: str) -> None:

@@ -180,6 +180,15 @@ class JobRepository(_Repository):
 class VehicleRepository(_Repository):
     row, kind = VehicleRow, "vehicle"
 
+    async def ids(self) -> set[str]:
+        """Every registered vehicle's id (what a service compares its links with once a
+        second: no rows loaded)."""
+        return await self.db.run(self._ids)
+
+    def _ids(self) -> set[str]:
+        with self.db.session() as s:
+            return set(s.scalars(select(VehicleRow.id)))
+
     async def by_connection(self, connection: str, sysid: int | None) -> VehicleRow | None:
         return await self.db.run(self._by_connection, connection, sysid)
 
