@@ -310,7 +310,7 @@ def table(results: list[Result]) -> list[str]:
             "-" if ratio is None else f"{ratio:.2f}" + (" **>1.15**" if ratio > 1.15 else "")
         )
         lines.append(
-            f"| {r.scenario} | {r.uavs} | {r.speed:g} | {outcome} | {_m(r.planned_s, 0)} | "
+            f"| {r.scenario} | {r.uavs} | {r.speed:g} | {outcome} | {_m(r.planned_s, 1)} | "
             f"{_m(r.mission_s, 1)} | {ratio_text} | {_m(r.gcs_sep_m)} | "
             f"{_m(r.truth_sep_m)}{sep_flag} | {r.two_r_m:.2f} | {_m(r.gcs_landing_m, 1)} | "
             f"{_m(r.truth_landing_m)} | {r.wall_s:.0f} |"
@@ -333,8 +333,8 @@ def gap_swap_lines(results: list[Result]) -> list[str]:
             timed = (fast.planned_s or 0) / (slow.planned_s or 1)
             lines += _share_line(
                 target, fast, slow, "",
-                f" (the product's own timed flights: {_m(fast.planned_s, 0)} s and "
-                f"{_m(slow.planned_s, 0)} s, {timed:.0%})",
+                f" (the product's own timed flights: {_m(fast.planned_s, 1)} s and "
+                f"{_m(slow.planned_s, 1)} s, {timed:.0%})",
             )  # fmt: skip
     return lines or ["No flight at 1 m/s in this run to compare with."]
 

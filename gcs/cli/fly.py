@@ -217,7 +217,7 @@ async def _flight(
     what = "timed" if args.dry_run else "flying"
     print(
         f"{what} at up to {flight.speed_m_s:g} m/s, keeping the plan's passing order: "
-        f"{flight.duration_s:.0f} s to the last goal when nothing goes wrong",
+        f"{flight.duration_s:.1f} s to the last goal when nothing goes wrong",
         flush=True,
     )
     return choice

@@ -119,7 +119,7 @@ def limits_of(observer: Observer, k: int = 0) -> CopterLimits:
     )
 
 
-PLANNED = re.compile(r"flying at up to ([\d.]+) m/s.*?: (\d+) s to the last goal")
+PLANNED = re.compile(r"flying at up to ([\d.]+) m/s.*?: ([\d.]+) s to the last goal")
 SEPARATION = re.compile(r"separation flown: ([\d.]+) m")
 HIGHEST = re.compile(r"the highest speed it can keep safe is ([\d.]+) m/s")
 
