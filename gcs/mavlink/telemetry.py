@@ -8,6 +8,12 @@ reboot and after the link comes back. After a gap in the heartbeats, a position 
 that was flowing before it and does not resume means the vehicle rebooted without the
 link noticing; a stream that was not flowing yet proves nothing (ArduPilot's heartbeats
 pause while it boots, before it streams anything), so it is only asked for again.
+
+Asking can fail unseen: REQUEST_DATA_STREAM has no answer, and on a lossy uplink the
+fallback to it (after three SET_MESSAGE_INTERVALs went unacknowledged) may be lost too.
+So after each ask, until a position arrives, they are asked for again every few heartbeats:
+fuzzed flight 19087's uav7, with 20 % loss towards it, was never asked successfully and
+its flight could not start ("the vehicle reports no position" after 100 s).
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ FALLBACK_STREAMS = (
 )
 FALLBACK_RATE_HZ = 4
 GAP_CHECK_PERIODS = 4  # heartbeat periods to wait for the position stream after a gap
+MIN_CHECK_S = 0.2
 
 
 def message_id(name: str) -> int:
@@ -40,11 +47,17 @@ class TelemetryStreams:
     def __init__(self, link: VehicleLink, rates_hz: dict[str, float]) -> None:
         self.link = link
         self.rates_hz = dict(rates_hz)
+        self._checking = False  # a `_until_flowing` runs
         link.on_event(self._on_event)
 
     async def start(self) -> bool:
-        """Ask for every stream; True if SET_MESSAGE_INTERVAL was accepted."""
-        return await request_telemetry(self.link, self.rates_hz)
+        """Ask for every stream; True if SET_MESSAGE_INTERVAL was accepted. Until a
+        position arrives, they are asked for again in the background."""
+        accepted = await request_telemetry(self.link, self.rates_hz)
+        if not self._checking:
+            self._checking = True
+            self.link.spawn(self._until_flowing())
+        return accepted
 
     def _on_event(self, event: LinkEvent) -> None:
         if event in (LinkEvent.REGAINED, LinkEvent.REBOOTED):
@@ -65,12 +78,27 @@ class TelemetryStreams:
         with contextlib.suppress(GcsError):
             await self.start()
 
-    async def _check_after_gap(self) -> None:
-        period = self.link.heartbeat_period_s or 1.0
+    def _check_s(self) -> float:
+        return max(GAP_CHECK_PERIODS * (self.link.heartbeat_period_s or 1.0), MIN_CHECK_S)
+
+    async def _until_flowing(self) -> None:
+        """Ask again, every few heartbeats, until the first position comes."""
         try:
-            await self.link.wait_for(
-                "GLOBAL_POSITION_INT", timeout=max(GAP_CHECK_PERIODS * period, 0.2)
-            )
+            while True:
+                try:
+                    await self.link.wait_for("GLOBAL_POSITION_INT", timeout=self._check_s())
+                    return
+                except WaitTimeoutError:
+                    with contextlib.suppress(GcsError):
+                        await request_telemetry(self.link, self.rates_hz)
+        except GcsError:
+            pass  # the link is closing
+        finally:
+            self._checking = False
+
+    async def _check_after_gap(self) -> None:
+        try:
+            await self.link.wait_for("GLOBAL_POSITION_INT", timeout=self._check_s())
         except WaitTimeoutError:
             self.link.declare_rebooted()
         except GcsError:

@@ -575,6 +575,47 @@ async def test_a_position_stream_that_stops_at_a_gap_means_a_reboot() -> None:
         await link.close()
 
 
+@pytest.mark.virtual_clock
+async def test_streams_asked_for_while_every_ask_is_lost_are_asked_for_until_they_flow() -> None:
+    """With 20 % loss towards it, a vehicle may miss all three SET_MESSAGE_INTERVALs and
+    then the fallback REQUEST_DATA_STREAM, which has no answer to miss: it streamed
+    nothing, and fuzzed flight 19087 could not start ("reports no position" after 100 s).
+    The streams are asked for again until a position comes."""
+    link, peer = await linked(silent)
+    lost = 8  # three unanswered tries of the first interval, the fallback's three, and two
+
+    def lossy_arducopter(msg: Any) -> list[Any]:
+        nonlocal lost
+        if msg.get_type() not in ("COMMAND_LONG", "REQUEST_DATA_STREAM"):
+            return []
+        if lost:
+            lost -= 1
+            return []
+        if msg.get_type() == "REQUEST_DATA_STREAM":
+            return [peer.codec.global_position_int_encode(0, 1, 2, 3, 4, 0, 0, 0, 0)]
+        ack = peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED)
+        return [ack, peer.codec.global_position_int_encode(0, 1, 2, 3, 4, 0, 0, 0, 0)]
+
+    async def heartbeats() -> None:  # steady at 1 Hz from `linked`'s: no gap to ask after
+        while True:
+            await asyncio.sleep(1.0)
+            peer.heartbeat()
+
+    peer.reply = lossy_arducopter
+    beating = asyncio.ensure_future(heartbeats())
+    streams = TelemetryStreams(link, {"GLOBAL_POSITION_INT": 5.0})
+    try:
+        assert not await streams.start(), "three unanswered tries: the fallback"
+        assert link.state.position is None
+        position = await link.wait_for("GLOBAL_POSITION_INT", timeout=30.0)
+        assert position.lat == 1
+        asks = peer.sent("COMMAND_LONG") + peer.sent("REQUEST_DATA_STREAM")
+        assert len(asks) == 9, "asked again until the ninth ask was answered, not beyond"
+    finally:
+        beating.cancel()
+        await link.close()
+
+
 async def test_a_mission_arducopter_will_not_pause_is_braked_and_resumed_in_auto() -> None:
     """ArduCopter pauses AUTO only on the way to a place; taking off, coming down or
     standing at a waypoint it answers FAILED "Failed to pause". The vehicle then brakes,
