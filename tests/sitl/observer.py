@@ -115,10 +115,10 @@ class Observer:
         finally:
             conn.close()
 
-    def min_separation(self, airborne_m: float = 1.0) -> float | None:
+    def min_separation(self, airborne_m: float = 1.0, since: float = -math.inf) -> float | None:
         """Closest horizontal approach of two airborne vehicles, on a common 10 Hz clock:
-        the observer's own, as reports arrive over loopback (the instances' boot clocks
-        started at different moments)."""
+        the observer's own (`time.monotonic()`, from `since` on), as reports arrive over
+        loopback (the instances' boot clocks started at different moments)."""
         best: float | None = None
         tracks = [track.arrays() for track in self.tracks.values()]
         for (at, alat, alon, aalt, _), (bt, blat, blon, balt, _) in itertools.combinations(
@@ -126,7 +126,7 @@ class Observer:
         ):
             if len(at) < 2 or len(bt) < 2:
                 continue
-            start, end = max(at[0], bt[0]), min(at[-1], bt[-1])
+            start, end = max(at[0], bt[0], since), min(at[-1], bt[-1])
             if end <= start:
                 continue
             grid = np.arange(start, end, 1.0 / RATE_HZ)
