@@ -82,7 +82,7 @@ class TelemetryStreams:
         return max(GAP_CHECK_PERIODS * (self.link.heartbeat_period_s or 1.0), MIN_CHECK_S)
 
     async def _until_flowing(self) -> None:
-        """Ask again, every few heartbeats, until the first position comes."""
+        """Ask again, every few heartbeats, until a position comes."""
         try:
             while True:
                 try:
@@ -92,7 +92,7 @@ class TelemetryStreams:
                     with contextlib.suppress(GcsError):
                         await request_telemetry(self.link, self.rates_hz)
         except GcsError:
-            pass  # the link is closing
+            pass  # the link is lost (asked for again once regained) or closed
         finally:
             self._checking = False
 
