@@ -591,10 +591,10 @@ async def test_streams_asked_for_while_every_ask_is_lost_are_asked_for_until_the
         if lost:
             lost -= 1
             return []
+        position = peer.codec.global_position_int_encode(0, 1, 2, 3, 4, 0, 0, 0, 0)
         if msg.get_type() == "REQUEST_DATA_STREAM":
-            return [peer.codec.global_position_int_encode(0, 1, 2, 3, 4, 0, 0, 0, 0)]
-        ack = peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED)
-        return [ack, peer.codec.global_position_int_encode(0, 1, 2, 3, 4, 0, 0, 0, 0)]
+            return [position]
+        return [peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED), position]
 
     async def heartbeats() -> None:  # steady at 1 Hz from `linked`'s: no gap to ask after
         while True:
