@@ -62,6 +62,8 @@ ARDUCOPTER_DEFAULTS: tuple[tuple[str, float, int], ...] = (
     ("FENCE_RADIUS", 300.0, REAL32),
     ("FENCE_MARGIN", 2.0, REAL32),
     ("FS_GCS_ENABLE", 0, INT8),
+    ("FS_GCS_TIMEOUT", 5.0, REAL32),
+    ("FS_OPTIONS", 16, INT32),
     ("WP_YAW_BEHAVIOR", 2, INT8),
     ("BATT_CAPACITY", 3300, INT32),
 )

@@ -24,6 +24,7 @@ from .codec import Decoder, Encoder, Message, Sender, mavlink
 from .commands import Command, CommandHandler
 from .faults import Faults, FaultyLink
 from .flight import FlightController, Home
+from .gcs_failsafe import GcsFailsafe
 from .kinematics import Body
 from .mission_item import MissionItem
 from .mission_store import MissionStore
@@ -110,6 +111,7 @@ class Vehicle:
             lambda: self.faults,
             self.say,
         )
+        self.failsafe = GcsFailsafe(self.flight, self.params, self.say)
         self.boot = BootSequence(self.flight, self.store, self.say, self._send_home)
         self.store.on_mission_changed = self._mission_changed
         self.store.on_current_changed = self._jumped
@@ -138,6 +140,7 @@ class Vehicle:
         self._decoders.clear()
         self._gcs_heard = False
         self._was_armed = False
+        self.failsafe.reset()
         self.flight.reboot(now)
         self.store.reset()
         self.schedule.reset(self._stream_by_default, now)
@@ -210,6 +213,7 @@ class Vehicle:
     def step(self, now: float) -> None:
         self.boot.step(now)
         self.flight.update(now)
+        self.failsafe.check(now)
         inbound, outbound = self.link.release(now)
         for msg, via in inbound:
             self._handle(msg, via, now)
@@ -327,6 +331,9 @@ class Vehicle:
         self._gcs_heard = True
         sender = Sender(msg.get_srcSystem(), msg.get_srcComponent(), link)
         kind = msg.get_type()
+        if kind == "HEARTBEAT":
+            self.failsafe.heard(sender.sysid, now)
+            return
         if kind.startswith("MISSION_"):
             self.store.handle(msg, sender, self._wall())
             return
