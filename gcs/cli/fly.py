@@ -99,6 +99,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"clearance --clearance + {WIDER_M:g} k m), and fly the one the vehicles reach "
         "their goals soonest with, timed at --max-speed (default: %(default)s)",
     )
+    parser.add_argument(
+        "--link-loss-brake",
+        type=float,
+        default=FleetSettings.link_loss_brake_s,
+        metavar="S",
+        help="a vehicle that has not heard us for S seconds brakes (ArduCopter's GCS "
+        "failsafe, set at upload); 0 leaves its own failsafe settings (default: %(default)s)",
+    )
     parser.add_argument("--connect-timeout", type=float, default=15.0)
     parser.add_argument(
         "--dry-run",
@@ -153,9 +161,10 @@ async def _fly(
         if args.dry_run:
             _print_timing(choice.flight)
             return 0
-        fleet = Fleet(
-            links, choice.flight, settings=FleetSettings(fallback=Fallback(args.on_failure))
+        settings = FleetSettings(
+            fallback=Fallback(args.on_failure), link_loss_brake_s=args.link_loss_brake
         )
+        fleet = Fleet(links, choice.flight, settings=settings)
         display = ProgressDisplay()
         watcher = asyncio.create_task(_show(fleet, display))
         report = await fleet.fly()

@@ -48,6 +48,8 @@ class FleetSettings:
     start_hold_m: float = 0.5
     start_move_timeout_s: float = 60.0
     fence_action: int = 1  # ArduCopter's FENCE_ACTION for a flight with a geofence: RTL
+    link_loss_brake_s: float = 2.0  # a vehicle that has not heard us for this long
+    # brakes (ArduCopter's GCS failsafe, `link_loss.py`); 0 leaves its own failsafe be
     tick_s: float = 0.05  # seconds between looks at the fleet
     progress_every_s: float = 0.25  # seconds between Progress events
 

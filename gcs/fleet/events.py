@@ -50,6 +50,7 @@ class EventKind(StrEnum):
     OPERATOR_CONTINUED = "OperatorContinued"
     WITHDRAWN = "Withdrawn"
     VEHICLE_LINK_REGAINED = "VehicleLinkRegained"
+    BRAKED_ON_LINK_LOSS = "BrakedOnLinkLoss"
     ADDRESS_CLAIMED = "AddressClaimed"
     PROGRESS = "Progress"  # live only, never stored (see POSITIONS)
     VEHICLE_FINISHED = "VehicleFinished"
@@ -190,6 +191,16 @@ class Withdrawn(FleetEvent):
 @dataclass(frozen=True)
 class VehicleLinkRegained(FleetEvent):
     kind = EventKind.VEHICLE_LINK_REGAINED
+    uav_id: str
+
+
+@dataclass(frozen=True)
+class BrakedOnLinkLoss(FleetEvent):
+    """The vehicle was found braked by its own GCS failsafe (it had not heard us for
+    `link_loss_brake_s`): the passing order sends it on again (AUTO), or, sent home by
+    the operator, it is sent home again."""
+
+    kind = EventKind.BRAKED_ON_LINK_LOSS
     uav_id: str
 
 

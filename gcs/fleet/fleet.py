@@ -23,6 +23,7 @@ from gcs.fleet.events import EventBus, FleetEvent, Listener, Uploaded, VehicleFa
 from gcs.fleet.follower import FlightReport, Follower
 from gcs.fleet.gatekeeper import GateCommander, Gatekeeper
 from gcs.fleet.geofence import GeoFence, enable_fence, upload_fence
+from gcs.fleet.link_loss import brake_on_link_loss
 from gcs.fleet.member import Member
 from gcs.fleet.outcome import VehicleOutcome
 from gcs.fleet.path_progress import PathProgress
@@ -144,15 +145,17 @@ class Fleet:
 
     async def upload(self) -> dict[str, VehicleOutcome[UploadResult]]:
         """Every mission at once; each verified by reading it back, and on ArduPilot with
-        the parameters that carry what its stored items cannot (the acceptance radius).
-        With a geofence, each vehicle's fence and rally points go first and the fence is
-        enabled last (a vehicle whose fence fails gets nothing else)."""
-        geofence = self.geofence
+        the parameters that carry what its stored items cannot (the acceptance radius)
+        and its brake on losing us (`link_loss`). With a geofence, each vehicle's fence
+        and rally points go first and the fence is enabled last (a vehicle whose fence
+        fails gets nothing else)."""
+        geofence, brake_after_s = self.geofence, self.settings.link_loss_brake_s
 
         async def upload_one(member: Member) -> UploadResult:
             if geofence is not None:
                 await upload_fence(member.client, geofence, member.altitude_m)
             result = await _upload(member)
+            await brake_on_link_loss(member.link, brake_after_s)
             if geofence is not None:
                 await enable_fence(member.link, geofence)
             return result
@@ -398,5 +401,5 @@ def _member(uav: str, link: VehicleLink, flight: FlightPlan, settings: FleetSett
         FlightActions(link, settings.commands, settings.readiness, client),
         client,
         RouteTracker(uav, flight.visits(uav), (takeoff.lat, takeoff.lon)),
-        PathProgress(flight.paths[uav], flight.frame),
+        PathProgress(flight.paths[uav], flight.frame, flight.limits[uav].speed_m_s),
     )

@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import asyncio
 from dataclasses import dataclass
+from typing import Any
 
-from gcs.fleet.crew import Crew
+from gcs.fleet.crew import Crew, Fallback
 from gcs.fleet.events import (
     AddressClaimed,
+    BrakedOnLinkLoss,
     FlightEnded,
     FlightOutcome,
     ItemReached,
@@ -26,7 +28,7 @@ from gcs.fleet.events import (
     Waiting,
     WaitOver,
 )
-from gcs.fleet.interventions import abort
+from gcs.fleet.interventions import abort, fall_back
 from gcs.fleet.member import Member
 from gcs.mission.geodesy import distance_m
 from gcs.mission.motion import Gate
@@ -53,6 +55,8 @@ class Follower:
         self.finished: set[str] = set()
         self._link_down: set[str] = set()
         self._claimants: dict[str, str] = {}  # uav -> the latest other address claiming it
+        self._sent_back: dict[str, asyncio.Task[Any]] = {}  # braked, sent home or down again
+        self._modes: dict[str, str] = {}  # uav -> the mode it was last looked at in
 
     async def follow(self, timeout_s: float | None = None) -> FlightReport:
         """Watch the flight to its end; `timeout_s` is in the vehicles' seconds (default:
@@ -66,6 +70,7 @@ class Follower:
         while crew.aborted is None and not self._all_down():
             self._note_items_and_ends()
             self._note_links()
+            self._note_brakes()
             if crew.settings.keep_order:
                 self._keep_order()
             if loop.time() >= next_progress:
@@ -140,6 +145,42 @@ class Follower:
             if claim is not None and self._claimants.get(m.uav_id) != claim.address:
                 self._claimants[m.uav_id] = claim.address
                 self.crew.bus.publish(AddressClaimed(m.uav_id, claim.address))
+
+    def _note_brakes(self) -> None:
+        """Vehicles their own GCS failsafe braked while nobody heard them (`link_loss`),
+        found so once heard: one in the plan is stopped out of its mission, and the
+        passing order sends it on (AUTO again) when its way is clear; one the operator
+        sent home (or down, though ArduCopter lets a landing go on) is sent so again.
+        A switch into BRAKE counts, not BRAKE itself: the HEARTBEATs after our own AUTO
+        still say BRAKE for a moment. Not while we change the vehicle's gate (our own
+        brake), nor for one the operator holds (his)."""
+        crew = self.crew
+        for uav, m in crew.members.items():
+            state = m.link.state
+            if crew.commander.changing(uav) or self._sending_back(uav) or not state.link_up:
+                continue  # looked at again once that is over
+            before, self._modes[uav] = self._modes.get(uav), state.mode
+            if (
+                state.mode != "BRAKE"
+                or before == "BRAKE"
+                or not crew.started
+                or uav in self.finished
+                or uav in crew.held
+                or m.actions.out_of_mission
+            ):
+                continue
+            crew.bus.publish(BrakedOnLinkLoss(uav))
+            withdrawn = crew.withdrawn.get(uav)
+            if withdrawn is not None:
+                again = fall_back(crew, [uav], Fallback(withdrawn))
+                self._sent_back[uav] = asyncio.ensure_future(again)
+                continue
+            crew.commander.held_out_of_mission(uav)
+            crew.gatekeeper.stop(uav)
+
+    def _sending_back(self, uav: str) -> bool:
+        task = self._sent_back.get(uav)
+        return task is not None and not task.done()
 
     def _keep_order(self) -> None:
         """Stop, release or edge up the vehicles the passing order says (`gatekeeper`)."""

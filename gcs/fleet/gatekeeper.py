@@ -319,6 +319,11 @@ class GateCommander:
             self.want(uav_id, self._wanted[uav_id])
         self._unanswered.discard(uav_id)
 
+    def changing(self, uav_id: str) -> bool:
+        """A change of the vehicle's gate is under way (its commands may be on the way)."""
+        task = self._tasks.get(uav_id)
+        return task is not None and not task.done()
+
     def _brought(self, uav_id: str) -> bool:
         """At its gate; one to be braked only once braked (a brake asked for while a
         pause was under way was taken as done by the pause's end: its mission, given

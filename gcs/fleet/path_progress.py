@@ -5,7 +5,8 @@ vehicle reports latitude and longitude. Each new position is put in the grid's m
 and projected onto the path near where the vehicle was last: never behind it by more
 than a little (a vehicle rounding a corner within its waypoint radius projects onto
 either leg; a step backwards is noise), and never further ahead than it can have flown
-since (a path that comes back near itself must not make a vehicle look far along it).
+since, at its top speed (a path that comes back near itself must not make a vehicle
+look far along it).
 Its speed along the path and its acceleration come from the reports' own clock
 (time_boot_ms), so a slow link or a loaded machine does not make a vehicle look slower
 than it is.
@@ -30,8 +31,10 @@ ACCEL_SMOOTHING = 0.5
 class PathProgress:
     """One vehicle's distance along its path, speed and acceleration."""
 
-    def __init__(self, path: PlannedPath, frame: GridFrame) -> None:
+    def __init__(self, path: PlannedPath, frame: GridFrame, top_speed_m_s: float = 0.0) -> None:
+        """`top_speed_m_s`: the fastest the vehicle flies (its cruise)."""
         self._frame = frame
+        self._top_speed = top_speed_m_s
         self.speed = 0.0
         self.accel = 0.0
         self.s = 0.0
@@ -53,7 +56,7 @@ class PathProgress:
         reach = LOOK_AHEAD_M
         if self._time_ms is not None:
             elapsed = max(0.0, (position.time_boot_ms - self._time_ms) / 1000.0)
-            reach += 2.0 * max(speed, self.speed) * elapsed
+            reach += max(2.0 * max(speed, self.speed), self._top_speed) * elapsed
         self._time_ms = position.time_boot_ms
         self.heard_at = state.position_heard
         self.speed = speed

@@ -303,6 +303,11 @@ class FlightActions:
         self._braked_in_mission = True
         return braked
 
+    @property
+    def out_of_mission(self) -> bool:
+        """Stopped out of AUTO by us or found so: only AUTO again resumes its mission."""
+        return self._braked_in_mission
+
     def found_stopped_out_of_mission(self) -> None:
         """The vehicle was stopped out of AUTO by others (a service gone, which held it
         as it stopped): only AUTO again resumes its mission."""

@@ -33,7 +33,10 @@ from gcs.mavlink.transport import ByteTransport, Peer, TransportOpener, open_tra
 
 GCS_SYSID = 255
 GCS_COMPID = mavlink2.MAV_COMP_ID_MISSIONPLANNER  # 190, as QGroundControl
-HEARTBEAT_PERIOD_S = 1.0
+HEARTBEAT_PERIOD_S = 0.2
+"""Five a second, not MAVLink's customary one: ArduCopter's GCS failsafe, which the
+service sets to brake after 2 s without one (`gcs.fleet.link_loss`), then sees ten beats
+to a timeout, and packet loss alone does not set it off."""
 SIGNING_EPOCH = 1420070400  # MAVLink signing timestamps count from 2015-01-01
 RELOCK_AFTER_S = 10.0  # a system silent this long may speak from a new address
 

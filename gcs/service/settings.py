@@ -62,6 +62,14 @@ class Settings(BaseSettings):
         "scenario: 0 report only, 1 RTL or land, 2 land, 3 SmartRTL or RTL or land, 4 brake "
         "or land, 5 SmartRTL or land",
     )
+    link_loss_brake_s: float = Field(
+        default=2.0,
+        ge=0,
+        le=120,
+        description="a vehicle of a flight that has not heard the service for this many "
+        "seconds brakes (ArduCopter's GCS failsafe: FS_GCS_ENABLE 7, set at upload); 0 "
+        "leaves the vehicles' own failsafe settings as they are",
+    )
     event_memory_rows: int = Field(
         default=10_000,
         ge=1,

@@ -23,7 +23,13 @@ from gcs.mission.geodesy import distance_m
 from planner.cases import load_case
 from sitl_mock import Faults, Simulator
 from sitl_mock.track import TrackPoint
-from tests.inprocess.flying import Flight, ground_speed, online, register
+from tests.inprocess.flying import (
+    Flight,
+    assert_down_apart_at_the_goals,
+    ground_speed,
+    online,
+    register,
+)
 from tests.inprocess.service import InProcessService, until
 
 pytestmark = [pytest.mark.virtual_clock, pytest.mark.slow]
@@ -149,10 +155,17 @@ async def test_abort_lands_a_flying_or_paused_fleet(gcs: InProcessService, pause
 
 
 async def test_a_short_link_outage_does_not_end_the_flight(gcs: InProcessService) -> None:
+    """Nor does the brake the vehicle puts itself in once it has not heard the service
+    for 2 s (ArduCopter's GCS failsafe, which the upload sets): found braked when heard
+    again, it is sent on by the passing order, and lands at its goal."""
     client = gcs.client
     sim = await _fleet(gcs)
     flight = await Flight.make(client, sim)
     await flight.fly()
+    for sysid in sim.sysids:
+        params = sim.vehicle(sysid).params
+        failsafe = [params.get(n) for n in ("FS_GCS_ENABLE", "FS_GCS_TIMEOUT", "FS_OPTIONS")]
+        assert failsafe == [7, 2.0, 16 | 8]  # brake; 2 s; landings go on (16 kept)
     uav1 = flight.vehicle_ids[0]
     sim.silence(1, seconds=6.0)  # longer than the link timeout (4 s)
 
@@ -161,11 +174,16 @@ async def test_a_short_link_outage_does_not_end_the_flight(gcs: InProcessService
 
     await until(offline, 30, "link lost")
     assert await flight.state() == "flying"
+    assert sim.state(1).mode == "BRAKE"  # by itself, 2 s after it last heard the service
+    await until(lambda: ground_speed(sim, 1) < 0.1, 1.5, "stopped before the link is back")
     lost = await _live_vehicle(client, flight.id, uav1)
     assert lost["stale"] and lost["seconds_since_heard"] >= 4.0, lost  # last heard, not now
     await until(lambda: online(client, uav1), 30, "link back")
     assert not (await _live_vehicle(client, flight.id, uav1))["stale"]
     assert await flight.wait_state("landed", "ended", "interrupted") == "landed"
+    braked = [e for e in await flight.events() if e["kind"] == "BrakedOnLinkLoss"]
+    assert [e["uav_id"] for e in braked] == ["uav1"]
+    assert_down_apart_at_the_goals(sim, flight.scenario)
 
 
 async def _live_vehicle(client: httpx.AsyncClient, flight_id: str, vehicle_id: str) -> dict:

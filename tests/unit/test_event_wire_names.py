@@ -32,8 +32,8 @@ def test_a_flight_outcome_is_its_wire_name_in_an_events_json() -> None:
 WIRE_KINDS = [
     "Uploaded", "VehicleReady", "VehicleFailed", "MissionsStarted", "StartCancelled",
     "ItemReached", "Waiting", "WaitOver", "LeadTaken", "OperatorHeld", "OperatorContinued",
-    "Withdrawn",
-    "VehicleLinkRegained", "AddressClaimed", "Progress", "VehicleFinished", "Aborted",
+    "Withdrawn", "VehicleLinkRegained", "BrakedOnLinkLoss",
+    "AddressClaimed", "Progress", "VehicleFinished", "Aborted",
     "FlightEnded", "FlightState", "ObjectReported", "OperatorCommand", "Positions",
     "TakenOver", "UnfollowedPaused", "AutoResumed", "Paused", "Resumed",
 ]  # fmt: skip
@@ -46,7 +46,7 @@ def test_event_kinds_are_todays_wire_names() -> None:
 
 def test_every_fleet_event_has_its_own_kind_its_class_name() -> None:
     classes = [c for c in FleetEvent.__subclasses__() if c.__module__ == "gcs.fleet.events"]
-    assert len(classes) == 18
+    assert len(classes) == 19
     assert len({c.kind for c in classes}) == len(classes)
     for event_class in classes:
         assert event_class.kind == event_class.__name__, event_class

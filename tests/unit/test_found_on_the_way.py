@@ -53,6 +53,21 @@ def test_a_vehicle_found_on_its_way_goes_on_from_there() -> None:
     assert progress.s == pytest.approx(165.0, abs=0.1)
 
 
+def test_a_vehicle_that_sped_up_and_braked_while_unheard_is_found_where_it_stopped() -> None:
+    """Its speeds either side of the silence say nothing of how far it flew meanwhile:
+    fuzzed flight 1529 with a link drop: uav4 was heard creeping from its start, flew
+    8 m unheard and braked (its GCS failsafe), and was looked for within 6 m of its
+    start from then on, taken to stand there while it flew into another's way."""
+    progress = PathProgress(U_TURN, FRAME, top_speed_m_s=10.0)
+    creeping = flying_at(0.1, 0.0, boot_ms=90_000)
+    creeping.velocity_n_e_m_s = (0.0, 0.3)
+    assert progress.update(creeping)
+    braked = flying_at(30.0, 0.0, boot_ms=95_000)
+    braked.velocity_n_e_m_s = (0.0, 0.0)
+    assert progress.update(braked)
+    assert progress.s == pytest.approx(30.0, abs=0.1)
+
+
 VISITS = [
     Visit(seq=2, arrive=10.0, leave=10.0, lat=0.0, lon=0.0),
     Visit(seq=3, arrive=12.0, leave=12.0, lat=0.0, lon=0.0),

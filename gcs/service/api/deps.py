@@ -84,7 +84,9 @@ class Services:
             vehicles=vehicles,
             registry=registry,
             metrics=metrics,
-            fleet_settings=FleetSettings(fence_action=settings.fence_action),
+            fleet_settings=FleetSettings(
+                fence_action=settings.fence_action, link_loss_brake_s=settings.link_loss_brake_s
+            ),
         )
         operator = OperatorCommands(flights, registry)
         leases = LeaseRepository(db, holder_for(settings), settings.lease_s)

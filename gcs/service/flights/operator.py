@@ -358,7 +358,9 @@ class OperatorCommands:
         seconds late at 10 m/s: 5.76 m from another in a replay of fuzzed flight 3519).
         A pause only (DO_PAUSE_CONTINUE), never a mode change: what the vehicle does
         otherwise (landing, going home, told so before) is left as it is, and the
-        operator's commands from then on are not overridden."""
+        operator's commands from then on are not overridden. One found braked (by its
+        own GCS failsafe, `gcs.fleet.link_loss`, or held by the service that stopped) is
+        stopped already, and said so."""
         waiting = self._unfollowed.get(flight_id, {})
         watching = _now() < self._unfollowed_until.get(flight_id, 0.0)
         due = []
@@ -368,6 +370,11 @@ class OperatorCommands:
                 continue  # not back yet, or its HEARTBEAT not heard yet
             if link.state.mode == "AUTO" and link.state.armed:  # both from HEARTBEAT
                 due.append((vehicle_id, link, uav))
+            elif link.state.mode == "BRAKE" and link.state.armed:
+                waiting.pop(vehicle_id)
+                detail = "braked already (its GCS failsafe, or held): nobody keeps the order"
+                data = {"uav_id": uav, "ok": True, "detail": detail}
+                self._tell(flight_id, EventKind.UNFOLLOWED_PAUSED, data)
             elif not watching:
                 waiting.pop(vehicle_id)
         await asyncio.gather(*(self._pause_one(flight_id, link, uav) for _, link, uav in due))
