@@ -20,6 +20,7 @@ PX4 keeps its own data-link-loss action (`NAV_DLL_ACT`): it is not set here.
 
 from __future__ import annotations
 
+from gcs.mavlink.errors import GcsError
 from gcs.mavlink.link import VehicleLink
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mavlink.parameters import find_parameter, set_parameter
@@ -32,11 +33,25 @@ VEHICLE_HEARTBEAT_S = 1.0
 """ArduPilot's HEARTBEAT period, on its own clock."""
 
 
+class FailsafeSetupError(GcsError):
+    """The vehicle did not take its GCS failsafe: the flight must not start."""
+
+
 async def brake_on_link_loss(link: VehicleLink, brake_after_s: float) -> None:
     """Give the vehicle its GCS failsafe (ArduPilot only; a `brake_after_s` of 0 leaves
-    its parameters as they are). Raises `GcsError` if it does not take them."""
+    its parameters as they are); `FailsafeSetupError` if it does not take it."""
     if brake_after_s <= 0 or link.autopilot != Autopilot.ARDUPILOT:
         return
+    try:
+        await _set_failsafe(link, brake_after_s)
+    except GcsError as exc:
+        raise FailsafeSetupError(
+            f"vehicle {link.sysid}: its brake on losing the ground station (GCS failsafe) "
+            f"was not set, flight refused: {exc}"
+        ) from exc
+
+
+async def _set_failsafe(link: VehicleLink, brake_after_s: float) -> None:
     if await find_parameter(link, ["FS_GCS_TIMEOUT"]) is not None:
         await set_parameter(link, "FS_GCS_TIMEOUT", timeout_on_vehicle_s(link, brake_after_s))
     found = await find_parameter(link, ["FS_OPTIONS"])
