@@ -44,6 +44,8 @@ the mock disarmed at the touch, and a vehicle waiting for the landing went 2 s e
 NOT_ARMABLE = frozenset({FlightMode.AUTO, FlightMode.RTL, FlightMode.LAND})
 RALLY_LIMIT_M = 300.0
 """ArduCopter's RALLY_LIMIT_KM default: a nearest rally point further away is not used."""
+SPEED_MODES = frozenset({FlightMode.AUTO, FlightMode.GUIDED, FlightMode.RTL})
+"""ArduCopter modes that take a DO_CHANGE_SPEED."""
 USER_TAKEOFF_MODES = frozenset({FlightMode.GUIDED, FlightMode.LOITER})
 """ArduCopter modes in which a NAV_TAKEOFF command is obeyed."""
 
@@ -341,8 +343,12 @@ class FlightController:
 
     def change_speed(self, speed: float) -> int:
         """DO_CHANGE_SPEED: the leg being flown changes speed at once (AC_WPNav::
-        set_speed_NE re-plans it), and so do the legs after it."""
+        set_speed_NE re-plans it), and so do the legs after it. ArduCopter takes it in
+        AUTO, GUIDED and RTL only (`Mode::set_speed_NE_ms`): FAILED in BRAKE, LAND, ...
+        (SITL 4.8.0-dev, a vehicle braked by its GCS failsafe)."""
         if not speed > 0 or not math.isfinite(speed):
+            return FAILED
+        if self.flavour.needs_mission_start and self.mode not in SPEED_MODES:
             return FAILED
         self._cruise_override = speed
         self.apply_limits()

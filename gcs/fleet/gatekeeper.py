@@ -346,8 +346,9 @@ class GateCommander:
 
     async def _change(self, uav_id: str, old: Gate, new: Gate) -> None:
         """Pause for STOP; an approach from a stop (`FlightActions.approach`: no faster
-        than its speed); otherwise the speed first (an approach's, or the mission's again
-        after one, even one that ended in a stop), then resume if stopped."""
+        than its speed); AUTO again for one stopped out of its mission; otherwise the
+        speed first (an approach's, or the mission's again after one, even one that
+        ended in a stop), then resume if stopped."""
         actions = self._actions[uav_id]
         if new == Gate.STOP and uav_id in self._braking:
             await actions.brake_in_mission()
@@ -361,6 +362,10 @@ class GateCommander:
             self._slowed[uav_id] = math.nan  # unknown until the approach's speed is in
             await actions.approach(speed)
             self._slowed[uav_id] = speed
+            return
+        if old == Gate.STOP and actions.out_of_mission:
+            await actions.resume_mission()  # AUTO, then the mission's speed: ArduCopter
+            self._slowed[uav_id] = None  # refuses a speed in BRAKE (FAILED)
             return
         if speed != self._slowed.get(uav_id):
             await actions.change_speed(self._cruise(uav_id) if speed is None else speed)

@@ -106,6 +106,8 @@ class VehicleLink:
         self._last_heartbeat: float | None = None
         self.heartbeat_period_s: float | None = None
         self.gap_began: float | None = None  # loop time the latest heartbeat gap began
+        self._clock_origin: tuple[float, int] | None = None  # (loop time, its time_boot_ms)
+        self._clock_heard_at = 0.0  # loop time its latest time_boot_ms came
         self.last_sent: float | None = None  # loop time we last sent the vehicle anything
         self.identity: VehicleIdentity | None = None  # what it reported (gcs.mavlink.identity)
         self._command_turns: dict[int, CommandTurn] = {}
@@ -186,6 +188,10 @@ class VehicleLink:
         elif gap:
             self._tell(LinkEvent.GAP)
         self.state.apply(msg, now)
+        if getattr(msg, "time_boot_ms", None):
+            self._clock_heard_at = now
+            if self._clock_origin is None:
+                self._clock_origin = (now, self.state.time_boot_ms)
         msg_type = msg.get_type()
         for sub in list(self._subscriptions):
             if sub.wants(msg_type):
@@ -223,8 +229,21 @@ class VehicleLink:
         self.state.reboots += 1
         self.state.reached.clear()
         self.state.time_boot_ms = 0
+        self._clock_origin = None
         self._fault(VehicleRebootedError(f"vehicle {self.sysid} rebooted"))
         self._tell(LinkEvent.REBOOTED)
+
+    def clock_rate(self) -> float | None:
+        """The vehicle's seconds to one of ours (a simulator's speed-up; 1 in the air),
+        from its own clock's reports since we first heard it (or since it rebooted);
+        None until a second of ours has passed."""
+        if self._clock_origin is None:
+            return None
+        then, boot_then = self._clock_origin
+        elapsed = self._clock_heard_at - then
+        if elapsed < 1.0:
+            return None
+        return (self.state.time_boot_ms - boot_then) / 1000.0 / elapsed
 
     def _link_regained(self) -> None:
         self.state.link_up = True

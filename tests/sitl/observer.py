@@ -45,6 +45,7 @@ class Track:
     boot_s: list[float] = field(default_factory=list)  # the autopilot's own clock
     speed: list[float] = field(default_factory=list)  # its horizontal ground speed, m/s
     armed: bool | None = None  # as its last HEARTBEAT said
+    mode: str | None = None  # likewise
     seq: list[tuple[float, int]] = field(default_factory=list)  # (boot_s, item) on a change
     params: dict[str, float] = field(default_factory=dict)  # those asked for, as answered
 
@@ -99,6 +100,7 @@ class Observer:
                 kind = msg.get_type()
                 if kind == "HEARTBEAT":
                     track.armed = bool(msg.base_mode & mavutil.mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+                    track.mode = mavutil.mode_string_v10(msg)
                 elif kind == "MISSION_CURRENT":
                     if (not track.seq or track.seq[-1][1] != msg.seq) and track.boot_s:
                         track.seq.append((track.boot_s[-1], int(msg.seq)))

@@ -24,6 +24,7 @@ class SlowLink:
     def __init__(self) -> None:
         self.sent: list[str] = []
         self.released = asyncio.Event()
+        self.out_of_mission = False  # braked: only AUTO again (resume_mission) sends it on
 
     async def _send(self, what: str) -> None:
         if not self.sent:
@@ -35,6 +36,7 @@ class SlowLink:
 
     async def resume_mission(self) -> None:
         await self._send("resume")
+        self.out_of_mission = False
 
     async def approach(self, speed_m_s: float) -> None:
         await self.change_speed(speed_m_s)
@@ -46,6 +48,7 @@ class SlowLink:
 
     async def brake_in_mission(self) -> str:
         await self._send("brake")
+        self.out_of_mission = True
         return "holding in BRAKE"
 
 
@@ -80,6 +83,7 @@ class Recorder:
 
     def __init__(self) -> None:
         self.sent: list[str] = []
+        self.out_of_mission = False
 
     async def pause_mission(self) -> str:
         self.sent.append("pause")
@@ -87,6 +91,7 @@ class Recorder:
 
     async def brake_in_mission(self) -> str:
         self.sent.append("brake")
+        self.out_of_mission = True
         return "holding in BRAKE"
 
     async def change_speed(self, speed_m_s: float) -> None:
@@ -94,6 +99,7 @@ class Recorder:
 
     async def resume_mission(self) -> None:
         self.sent.append("resume")
+        self.out_of_mission = False
 
 
 def commanding(link: object) -> GateCommander:

@@ -3,12 +3,14 @@ scripted autopilot's parameters, on the virtual clock."""
 
 from __future__ import annotations
 
+import asyncio
 from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs.fleet.link_loss import FailsafeSetupError, brake_on_link_loss
+from gcs.mavlink.link import VehicleLink
 from tests.unit.test_mavlink_in_memory import Peer, Reply, linked, silent
 
 pytestmark = pytest.mark.virtual_clock
@@ -35,13 +37,23 @@ def parameters(peer: Peer, values: dict[str, float], refused: frozenset[str]) ->
     return reply
 
 
+async def clock_runs_twice_as_fast(link: VehicleLink, peer: Peer) -> None:
+    """The vehicle's clock (`time_boot_ms`) says 4 s went by while 2 s of ours did."""
+    for boot_ms in (10_000, 12_000, 14_000):
+        peer.heartbeat()
+        peer.send(peer.codec.system_time_encode(0, boot_ms))
+        if boot_ms < 14_000:
+            await asyncio.sleep(1.0)
+    assert link.clock_rate() == pytest.approx(2.0, rel=0.01)
+
+
 async def fly_with(
     values: dict[str, float], brake_after_s: float, refused: frozenset[str] = frozenset()
 ) -> list[str]:
     """The parameters a flight's upload sets on such an autopilot, in order."""
     link, peer = await linked(silent)
     peer.reply = parameters(peer, values, refused)
-    link.heartbeat_period_s = 0.5  # its HEARTBEATs twice a second: a SITL at speed-up 2
+    await clock_runs_twice_as_fast(link, peer)  # a SITL at speed-up 2
     try:
         await brake_on_link_loss(link, brake_after_s)
     finally:

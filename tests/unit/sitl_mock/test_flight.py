@@ -227,6 +227,25 @@ def test_change_speed_item_sets_the_cruise_speed():
     assert sim.state(1).ground_speed == pytest.approx(4.0, abs=0.01)
 
 
+@pytest.mark.parametrize(
+    ("mode", "result"),
+    [
+        (FlightMode.AUTO, ACCEPTED),
+        (FlightMode.GUIDED, ACCEPTED),
+        (FlightMode.RTL, ACCEPTED),
+        (FlightMode.BRAKE, FAILED),
+        (FlightMode.LAND, FAILED),
+    ],
+)
+def test_arducopter_takes_a_speed_only_in_auto_guided_and_rtl(mode: FlightMode, result: int):
+    """SITL 4.8.0-dev answered DO_CHANGE_SPEED FAILED to a vehicle in BRAKE (braked by
+    its GCS failsafe), where the mock took it: the service's resume never sent it on."""
+    sim, flight = make(mission=[takeoff(), at(200, 0), land()])
+    airborne_in_guided(sim, flight)
+    assert flight.set_mode(mode, sim.sim_time) == ACCEPTED
+    assert flight.change_speed(3.0) == result
+
+
 def test_rtl_climbs_flies_home_and_lands():
     sim, flight = make(mission=[takeoff(10.0), at(50, 50, alt=10.0)])
     airborne_in_guided(sim, flight, alt=10.0)
