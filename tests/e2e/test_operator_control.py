@@ -108,10 +108,10 @@ def test_after_a_restart_the_flight_is_interrupted_and_abort_still_works(
                     got = client.get(f"/flights/{flight.id}/events", params={"limit": 10000})
                     return [e for e in got.json() if e["kind"] == "UnfollowedPaused"]
 
-                # Those the operator's hold left in their missions (AUTO, paused; where the
-                # mission would not pause, it braked them: BRAKE, left as it is).
-                in_mission = [k for k in sim.sysids if sim.state(k).mode == "AUTO"]
-                wait_for(lambda: len(paused()) == len(in_mission), 30, "missions paused")
+                # Each is told of: paused again where the operator's hold left it in its
+                # mission (AUTO), found braked where the mission would not pause or where
+                # its GCS failsafe braked it while the service was down (BRAKE).
+                wait_for(lambda: len(paused()) == len(sim.sysids), 30, "missions paused")
                 refused = flight.post("upload")
                 assert refused.status_code == 409, refused.text
                 _abort_lands_everyone(flight)
