@@ -167,6 +167,11 @@ FOUND_LINK_DROPS = {
     "where it was to wait for uav3: its mission flew it on 4.8 m into the encounter, it was "
     "stopped there once heard again, and uav3 passed it 0.65 m away. A vehicle unheard for "
     "1 s now leads every encounter ahead where the other can still stop short",
+    (1529, 5.0): "gap swap of 6 UAVs at 10 m/s, uav4's link silent 5 s as it crept from its "
+    "start: it flew 8 m unheard, then its GCS failsafe braked it, and heard again it was "
+    "looked for only 6 m on (its speeds either side of the silence), taken to stand at its "
+    "start for good, while the order let uav1 fly to 4.36 m of it. Its progress now looks "
+    "as far on as its cruise can have taken it",
 }
 """Flights with a link drop (`--link-drops`), each with the drop's length it failed with
 (the seed draws its moment and vehicle)."""
