@@ -27,16 +27,13 @@ PILOT_CONTROLLED = frozenset({FlightMode.STABILIZE, FlightMode.LOITER})
 """The simulated modes that are not `is_autopilot()` in ArduCopter."""
 DEFAULT_TIMEOUT_S = 5.0
 """Before FS_GCS_TIMEOUT (ArduCopter 4.2 and older) the timeout was fixed at 5 s."""
+RTL_OR_LAND = (FlightMode.RTL, FlightMode.LAND)
 ACTIONS: dict[int, tuple[FlightMode, ...]] = {
-    1: (FlightMode.RTL, FlightMode.LAND),
-    2: (FlightMode.RTL, FlightMode.LAND),  # "continue in AUTO", removed in 4.0: RTL
-    3: (FlightMode.RTL, FlightMode.LAND),  # SmartRTL is not simulated: its RTL fallback
-    4: (FlightMode.RTL, FlightMode.LAND),  # SmartRTL, else LAND
     5: (FlightMode.LAND,),
-    6: (FlightMode.RTL, FlightMode.LAND),  # no DO_LAND_START is simulated: RTL
     7: (FlightMode.BRAKE, FlightMode.LAND),
 }
-"""FS_GCS_ENABLE -> the modes tried in turn (a value ArduCopter does not know means RTL)."""
+"""FS_GCS_ENABLE -> the modes tried in turn; any other value RTL_OR_LAND (1 and 2 RTL, 3, 4
+and 6 RTL too: SmartRTL and DO_LAND_START are not simulated; unknown values RTL)."""
 
 
 class GcsFailsafe:
@@ -101,7 +98,7 @@ class GcsFailsafe:
             self._announce("Continuing Pilot Control")
             return
         self._announce()
-        tries = ACTIONS.get(int(self._params.get("FS_GCS_ENABLE")), ACTIONS[1])
+        tries = ACTIONS.get(int(self._params.get("FS_GCS_ENABLE")), RTL_OR_LAND)
         for mode in tries:
             if flight.set_mode(mode, now) == ACCEPTED:
                 return
