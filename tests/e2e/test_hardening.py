@@ -200,10 +200,27 @@ def capped(tmp_path: Path) -> Iterator[ServiceProcess]:
     proc.stop()
 
 
+CROSSING = {
+    "name": "crossing",
+    "grid": {"width": 6, "height": 6},
+    "uavs": [
+        {"id": f"uav{k}", "start": start, "goal": goal}
+        for k, (start, goal) in enumerate(
+            [([0, 0], [5, 5]), ([5, 5], [0, 0]), ([0, 5], [5, 0]), ([5, 0], [0, 5])]
+        )
+    ],
+}
+"""Four UAVs through one point: the paper's flow searches this until its budget is spent
+(one UAV alone is planned, and its job over, within milliseconds)."""
+
+
 def running_job(service: ServiceProcess, client: httpx.Client) -> str:
     """A planning job that runs for a minute unless cancelled."""
-    scenario = client.post("/scenarios", json=CASE).json()["id"]
-    request = {"wait_s": 0, "time_budget_s": 60, "iterations": 100_000, "patience": None}
+    scenario = client.post("/scenarios", json=CROSSING).json()["id"]
+    request = {
+        "wait_s": 0, "time_budget_s": 60, "iterations": 100_000, "patience": None,
+        "objective": "paper",
+    }  # fmt: skip
     answer = client.post(f"/scenarios/{scenario}/plans", json=request)
     assert answer.status_code == 202, answer.text
     return str(answer.json()["id"])
