@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import math
 from typing import Any
 
 import httpx
@@ -184,6 +185,48 @@ async def test_a_short_link_outage_does_not_end_the_flight(gcs: InProcessService
     braked = [e for e in await flight.events() if e["kind"] == "BrakedOnLinkLoss"]
     assert [e["uav_id"] for e in braked] == ["uav1"]
     assert_down_apart_at_the_goals(sim, flight.scenario)
+
+
+@pytest.mark.parametrize("held", [False, True], ids=["aborting", "held-by-the-operator"])
+async def test_a_vehicle_braked_on_its_way_home_is_sent_home_again(
+    gcs: InProcessService, held: bool
+) -> None:
+    """An abort's RTL is no landing, so the GCS failsafe brakes a vehicle that stops
+    hearing the service on its way home (ArduCopter's failsafe_gcs_on_event): heard
+    again, it is sent home again, and the flight ends `aborted` with every vehicle down
+    at home. One the operator held during the abort stays where he held it."""
+    client = gcs.client
+    sim = await _fleet(gcs)
+    homes = {sysid: east_north[:2] for sysid, east_north in sim.local_positions().items()}
+    flight = await Flight.make(client, sim)
+    await flight.fly()
+    await until(lambda: min(ground_speed(sim, s) for s in sim.sysids) > 1.0, 60, "under way")
+    assert (await flight.post("abort", mode="rtl")).status_code == 200
+    await until(lambda: flight.modes() == {"RTL"}, 30, "every vehicle in RTL")
+    uav1 = flight.vehicle_ids[0]
+    if held:
+        assert (await client.post(f"/vehicles/{uav1}/hold")).json()["ok"]
+    sim.silence(1, seconds=6.0)  # longer than its failsafe's 2 s and the link timeout (4 s)
+    if not held:
+        await until(lambda: sim.state(1).mode == "BRAKE", 30, "braked by itself")
+
+    async def offline() -> bool:
+        return not await online(client, uav1)
+
+    await until(offline, 30, "link lost")
+    await until(lambda: online(client, uav1), 30, "link back")
+    if held:
+        await until(lambda: not sim.state(2).armed, 600, "uav2 down")
+        assert sim.state(1).mode == "BRAKE" and sim.state(1).armed  # held: not sent home
+        assert (await flight.post("abort", mode="land")).status_code == 200
+    assert await flight.wait_state("aborted", timeout=600) == "aborted"
+    if held:
+        return
+    for sysid, home in homes.items():
+        gap = math.dist(sim.local_positions()[sysid][:2], home)
+        assert gap < 1.0, (sysid, gap)
+    said = [e for e in await flight.events() if e["kind"] == "BrakedOnLinkLoss"]
+    assert [e["uav_id"] for e in said] == ["uav1"], said
 
 
 async def _live_vehicle(client: httpx.AsyncClient, flight_id: str, vehicle_id: str) -> dict:

@@ -63,7 +63,11 @@ class OperatorCommands:
         """409 unless this service controls the flight (FlightControl.require)."""
         self._owed: dict[str, tuple[Fallback, set[str]]] = {}
         """Per aborting flight: the abort's action, and the vehicles it has not reached yet
-        (offline when it was sent, or it failed): sent to each as soon as it can be."""
+        (offline when it was sent, or it failed, or braked on its way since): sent to each
+        as soon as it can be."""
+        self._abort_modes: dict[str, dict[str, str]] = {}
+        """Per aborting flight: each vehicle's mode when last looked at (`_note_brakes`);
+        one the operator commands himself after the abort is no longer in it."""
         self._unfollowed: dict[str, dict[str, str]] = {}
         """Per interrupted flight: the vehicles whose missions are to be paused once
         reachable (nobody keeps their passing order), until the operator commands them."""
@@ -90,6 +94,7 @@ class OperatorCommands:
                 )
             self.operator_took(flight_id)
             self._owed.pop(flight_id, None)  # an earlier abort's owed: this one overrides it
+            self._abort_modes[flight_id] = {vid: "" for vid in row.bindings.values()}
             preempting = asyncio.ensure_future(slot.preempt())
             active = self.book.active.get(flight_id)
             if active is not None and active.fleet.crew.members:
@@ -273,6 +278,7 @@ class OperatorCommands:
         """Send the abort again to each of `vehicle_ids` not yet down, as soon as it can be
         (a flight taken over from a service that died while aborting it)."""
         self._owed[flight_id] = (fallback, set(vehicle_ids))
+        self._abort_modes[flight_id] = dict.fromkeys(vehicle_ids, "")
         self.watch_until_down(flight_id)
 
     def pause_unfollowed(
@@ -289,11 +295,17 @@ class OperatorCommands:
 
     def operator_took(self, flight_id: str, vehicle_id: str | None = None) -> None:
         """The operator commands the flight's vehicles (or one): none of them (or not that
-        one) is paused for being unfollowed from now on."""
+        one) is paused for being unfollowed from now on, nor sent an abort again once
+        braked; that one is not owed an earlier abort either."""
         if vehicle_id is None:
             self._unfollowed.pop(flight_id, None)
+            self._abort_modes.pop(flight_id, None)
         else:
             self._unfollowed.get(flight_id, {}).pop(vehicle_id, None)
+            self._abort_modes.get(flight_id, {}).pop(vehicle_id, None)
+            owed = self._owed.get(flight_id)
+            if owed is not None:
+                owed[1].discard(vehicle_id)
         resumer = self._resumers.pop(flight_id, None)
         if resumer is not None:
             resumer.cancel()
@@ -304,7 +316,6 @@ class OperatorCommands:
         if watcher is not None:
             watcher.cancel()
         self._owed.pop(flight_id, None)
-        self._unfollowed.pop(flight_id, None)
         self.operator_took(flight_id)  # no resume of a flight another service holds
 
     async def _until_down(self, flight_id: str) -> None:
@@ -314,6 +325,7 @@ class OperatorCommands:
             state = await self.book.state(flight_id)
             if not state.is_open or state not in (F.ABORTING, F.INTERRUPTED):
                 break
+            self._note_brakes(flight_id, bindings)
             await self._pay_what_is_owed(flight_id)
             await self._pause_unfollowed(flight_id)
             if self._all_down(flight_id, bindings.values()):
@@ -329,8 +341,27 @@ class OperatorCommands:
             await asyncio.sleep(DOWN_POLL_S)
         self._watchers.pop(flight_id, None)
         self._owed.pop(flight_id, None)
+        self._abort_modes.pop(flight_id, None)
         self._unfollowed.pop(flight_id, None)
         self._unfollowed_until.pop(flight_id, None)
+
+    def _note_brakes(self, flight_id: str, bindings: Mapping[str, str]) -> None:
+        """A vehicle on its abort's way that switches into BRAKE by itself is owed the
+        abort again: an RTL is no landing, so its GCS failsafe brakes it once it has not
+        heard us for a while (`gcs.fleet.link_loss`; ArduCopter's failsafe_gcs_on_event),
+        and it would hover there. A switch counts, not BRAKE itself (one the operator
+        holds has left the abort's care: `operator_took`)."""
+        modes, owed = self._abort_modes.get(flight_id), self._owed.get(flight_id)
+        if modes is None or owed is None:
+            return
+        for uav, vehicle_id in sorted(bindings.items()):
+            link = self.registry.link_or_none(vehicle_id)
+            if vehicle_id not in modes or link is None or not link.state.link_up:
+                continue
+            before, modes[vehicle_id] = modes[vehicle_id], link.state.mode
+            if link.state.mode == "BRAKE" and before not in ("", "BRAKE") and link.state.armed:
+                owed[1].add(vehicle_id)
+                self._tell(flight_id, EventKind.BRAKED_ON_LINK_LOSS, {"uav_id": uav})
 
     async def _pay_what_is_owed(self, flight_id: str) -> None:
         """The abort to the vehicles it has not reached yet, now that they can be; given
