@@ -13,12 +13,13 @@ puts the operator's commands to the vehicles mid-flight.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import subprocess
 import sys
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -29,7 +30,7 @@ import pytest
 
 from gcs.mavlink.mission_item import Autopilot
 from gcs.mission.flight_plan import UnsafeSpeed, flight_plan
-from gcs.mission.geodesy import GridFrame
+from gcs.mission.geodesy import GridFrame, distance_m
 from gcs.mission.motion import CopterLimits
 from planner.cases import load_case
 from planner.model.plan import Plan
@@ -54,6 +55,7 @@ from tests.sitl.flown import (
     two_r,
 )
 from tests.sitl.observer import Observer, observing
+from tests.sitl.relay import Relay
 
 pytestmark = [pytest.mark.sitl, pytest.mark.slow, pytest.mark.timeout(1800)]
 STILL_M_S = 0.1  # standing, by the autopilot's own ground speed
@@ -195,11 +197,13 @@ def service_flight(
     speed: float | None = None,
     rate: float | None = None,
     service: ServiceProcess | None = None,
+    connect: Callable[[Instance], str] = lambda instance: instance.connection,
 ) -> Iterator[tuple[httpx.Client, str, Observer, Plan]]:
     """Fresh instances at the UAVs' starts and the service (`service`, if the test needs
     its process), with a flight of `scenario` planned, bound at `speed` (the product's
     default when None), uploaded (verified by read-back) and started; SITL at speed-up
-    `rate` (default: `speedup`)."""
+    `rate` (default: `speedup`); the service reaches each instance at `connect`'s
+    address."""
     service = service or ServiceProcess(tmp_path / "data")
     homes = homes_at_starts(scenario)
     with instances(homes, tmp_path, rate or speedup(scenario)) as sitl:
@@ -209,7 +213,7 @@ def service_flight(
                 sid = client.post("/scenarios", json=scenario.model_dump(mode="json")).json()["id"]
                 planned = client.post(f"/scenarios/{sid}/plans", json={"wait_s": 30}).json()
                 plan = Plan(**planned["plan"])
-                ids = [register(client, i.connection) for i in sitl]
+                ids = [register(client, connect(i)) for i in sitl]
                 made = create_flight(client, planned["id"], scenario, ids, speed)
                 assert made.status_code == 201, made.text  # no refusal at 5 or 10 m/s
                 flight = made.json()["id"]
@@ -503,6 +507,45 @@ def coming_down(
         if p and p["current_seq"] == landings[v["uav_id"]] and 5.0 < (p["alt_m"] or 0.0) < 15.0:
             return v["uav_id"], v["vehicle_id"]
     return None
+
+
+def test_a_vehicle_braked_on_its_abort_s_way_home_is_sent_home_again(tmp_path: Path) -> None:
+    """Abort with RTL, then cut uav1's link to the service (a relay drops both ways; the
+    observer's port is untouched): ArduCopter's GCS failsafe brakes it (an RTL is no
+    landing), and heard again it is sent home again, so every vehicle lands at home and
+    the flight ends `aborted` without the operator."""
+    scenario = load_case("case-6")
+    with contextlib.ExitStack() as relays:
+        cut: list[Relay] = []
+
+        def connect(instance: Instance) -> str:
+            if instance.index != 0:
+                return instance.connection
+            cut.append(relays.enter_context(Relay(instance.port)))
+            return cut[0].connection
+
+        with service_flight(tmp_path, scenario, rate=2.0, connect=connect) as (
+            client, flight, observer, _,
+        ):  # fmt: skip
+            wait_for(lambda: under_way(client, flight), 600, "every vehicle on its way")
+            aborted = client.post(f"/flights/{flight}/abort", json={"mode": "rtl"})
+            assert aborted.status_code == 200, aborted.text
+            uav1 = observer.tracks[0]
+            wait_for(lambda: uav1.mode == "RTL", 60, "uav1 going home")
+            cut[0].cut(6.0)  # wall seconds: 12 of SITL's, its failsafe's timeout 4
+            wait_for(lambda: uav1.mode == "BRAKE", 30, "uav1 braked by itself")
+            wait_for(lambda: uav1.mode == "RTL", 60, "uav1 sent home again")
+            state = final_state(client, flight, 900, observer)
+            events = all_events(client, flight)
+            down = observer.latest()
+    assert state["state"] == "aborted", state
+    braked = [e["uav_id"] for e in events if e["kind"] == "BrakedOnLinkLoss"]
+    assert braked == ["uav1"], braked
+    homes = homes_at_starts(scenario)
+    away = [distance_m(h[0], h[1], m.lat, m.lon) for h, m in zip(homes, down, strict=True)]
+    assert all(m.alt < 0.3 for m in down) and max(away) < ARRIVAL_M + LAND_DRIFT_M, (down, away)
+    landed = [round(d, 2) for d in away]
+    print(f"abort: uav1 braked on its way home, sent home again; landed {landed} m from home")
 
 
 def test_one_arducopter_reached_on_two_ports_is_one_vehicle(tmp_path: Path) -> None:
