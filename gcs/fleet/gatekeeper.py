@@ -4,8 +4,9 @@ Every look: where each vehicle is along its path (`path_progress`), how far the 
 order lets it go while the others are where they are (`PassingOrder.limit`), and what
 the stopping rule makes of the gap at its speed (`StoppingRule.decide`): fly on, stop
 (DO_PAUSE_CONTINUE, or a brake where ArduCopter will not pause), or approach the limit
-slowly (DO_CHANGE_SPEED), ready to stop short of it, to be there sooner once the way is
-free, or because someone else waits for it to pass a point before it.
+slowly (DO_CHANGE_SPEED, faster as the limit moves on), ready to stop short of it, to be
+there sooner once the way is free, or because someone else waits for it to pass a point
+before it.
 A vehicle waits only for those its path meets, never for a clock: a late take-off, an
 operator's hold or a lost link delays the vehicles that depend on that one, and nobody
 else. A vehicle down for good (landed at its goal, or sent down) is in nobody's way.
@@ -108,9 +109,13 @@ class Gatekeeper:
                 self.gates[uav], gap, speed, accel, own, waited, self.approach.get(uav)
             )
             waits_for = limit.leader if gate != Gate.GO else None
+            faster = None
             if gate == Gate.CREEP and self.gates[uav] != Gate.CREEP:
                 self.approach[uav] = self.rule.approach_speed(gap, own, waited)
-            if gate != self.gates[uav] or waits_for != self.waits_for[uav]:
+            elif gate == Gate.CREEP:
+                faster = self.rule.faster_approach(gap, own, waited, self.approach.get(uav))
+                self.approach[uav] = faster or self.approach.get(uav)
+            if gate != self.gates[uav] or waits_for != self.waits_for[uav] or faster:
                 approach = self.approach.get(uav) if gate == Gate.CREEP else None
                 changes.append(GateChange(uav, gate, waits_for, gap, approach))
             self.gates[uav], self.waits_for[uav] = gate, waits_for
@@ -330,7 +335,8 @@ class GateCommander:
         anew, sent it on, fuzzed flight 4703, 0.63 m)."""
         wanted = self._wanted[uav_id]
         braking = wanted == Gate.STOP and uav_id in self._braking
-        return self.applied[uav_id] == wanted and not braking
+        sped_up = wanted == Gate.CREEP and self._slowed.get(uav_id) != self._approach.get(uav_id)
+        return self.applied[uav_id] == wanted and not braking and not sped_up
 
     async def _bring(self, uav_id: str) -> None:
         while not self._brought(uav_id):

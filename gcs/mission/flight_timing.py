@@ -225,6 +225,10 @@ def fly(
             if gate == Gate.CREEP and vehicle.gate != Gate.CREEP:
                 vehicle.approach_m_s = rule.approach_speed(gap, vehicle.limits, waited) or 0.0
                 vehicle.starting_s = APPROACH_LAG_S if vehicle.gate == Gate.STOP else 0.0
+            elif gate == Gate.CREEP:
+                sent = vehicle.approach_m_s or None
+                faster = rule.faster_approach(gap, vehicle.limits, waited, sent)
+                vehicle.approach_m_s = faster or vehicle.approach_m_s
             vehicle.gate = gate
             before = vehicle.s
             vehicle.step(vehicle.cap(rule), STEP_S)

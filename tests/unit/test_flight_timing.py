@@ -180,6 +180,23 @@ def test_the_stopping_rule_stops_in_time_goes_only_with_room_and_creeps_when_wai
     assert rule.decide(Gate.CREEP, 0.3, 0.5, 0.0, LIMITS, True) == Gate.STOP
 
 
+def test_an_approach_is_sped_up_when_its_limit_moves_on() -> None:
+    """Stopped 7 m short, a vehicle approaches at 1 m/s; its leader goes on and the limit
+    with it: 17 m ahead there is room for a faster approach, which it is given rather
+    than crawl on (or be stopped and set off again). Not for a gain below the slack, and
+    never faster than what fits."""
+    rule = StoppingRule()
+    limits = CopterLimits(speed_m_s=5.0)
+    assert rule.approach_speed(7.0, limits, False) == 1.0
+    faster = rule.faster_approach(17.0, limits, False, 1.0)
+    assert faster is not None and faster > 1.5
+    assert rule.faster_approach(17.0, limits, False, faster) is None
+    assert rule.faster_approach(7.0, limits, False, 1.0) is None  # no more room than before
+    assert rule.faster_approach(2.0, limits, True, None) is None  # a creep stays a creep
+    room = rule.needed_m(faster, 0.0, limits, track_m_s=faster)
+    assert room + limits.change_distance(0.0, faster) < 17.0  # it can still stop short
+
+
 def test_a_creep_its_mission_sped_up_again_is_judged_on_the_legs_speed() -> None:
     """Fuzzed flight 9979: creeping at 0.5 m/s, a vehicle passed its mission's
     DO_CHANGE_SPEED items (the leg's 10 m/s), and on a long leg it sped up. Judged as still

@@ -101,6 +101,10 @@ class Recorder:
         self.sent.append("resume")
         self.out_of_mission = False
 
+    async def approach(self, speed_m_s: float) -> None:
+        await self.change_speed(speed_m_s)
+        await self.resume_mission()
+
 
 def commanding(link: object) -> GateCommander:
     return GateCommander(
@@ -175,4 +179,21 @@ async def test_a_change_the_vehicle_did_not_answer_is_tried_again_once_it_is_hea
     commander.heard("uav1")  # heard again: nothing more to do
     await settled(commander)
     assert link.sent == ["lost", "pause"]
+    await commander.close()
+
+
+async def test_an_approach_sped_up_is_sent_its_new_speed_without_a_stop() -> None:
+    """Approaching its limit at 1 m/s, the vehicle is wanted faster (the limit moved on
+    with its leader): one speed command, no pause and no resume."""
+    commander, link = recorded()
+    commander.found_stopped("uav1")
+    commander.want("uav1", Gate.CREEP, 1.0)
+    await settled(commander)
+    assert link.sent == ["speed 1", "resume"]
+    commander.want("uav1", Gate.CREEP, 3.0)
+    await settled(commander)
+    assert link.sent == ["speed 1", "resume", "speed 3"]
+    commander.want("uav1", Gate.CREEP, 3.0)  # the same again: nothing to send
+    await settled(commander)
+    assert link.sent == ["speed 1", "resume", "speed 3"]
     await commander.close()

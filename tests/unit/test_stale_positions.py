@@ -1,5 +1,6 @@
-"""The passing order judged on old positions: a vehicle whose positions were lost for a
-while is taken to have flown on (`Gatekeeper._reckoned`); the one it waits for is not."""
+"""The gatekeeper's judgement of where a vehicle is: one whose positions were lost for a
+while is taken to have flown on (`Gatekeeper._reckoned`), the one it waits for is not;
+and one approaching a limit that has moved on is sped up."""
 
 from __future__ import annotations
 
@@ -50,3 +51,17 @@ def test_the_vehicle_waited_for_counts_where_it_was_last_heard() -> None:
     keeper.decide(progress, ["a", "b"], now=HEARD_AT + 30.0)
     assert keeper.gates["b"] == Gate.STOP
     assert keeper.waits_for["b"] == "a"
+
+
+def test_an_approach_whose_limit_moved_on_is_sped_up() -> None:
+    """b approaches its limit at 1 m/s; judged 20 m short of it (its limit moved on with
+    its leader), it is given a faster approach, once: a change naming the new speed."""
+    keeper, progress = _keeper_and_progress()
+    b = progress["b"]
+    limit = keeper.order.limit("b", {"a": 0.0, "b": 0.0}).at_m
+    b.s, b.speed, b.accel, b.heard_at = limit - 20.0, 1.0, 0.0, HEARD_AT
+    keeper.gates["b"], keeper.waits_for["b"], keeper.approach["b"] = Gate.CREEP, "a", 1.0
+    [change] = keeper.decide(progress, ["b"], now=HEARD_AT)
+    assert (change.gate, change.waits_for) == (Gate.CREEP, "a")
+    assert change.speed_m_s is not None and change.speed_m_s > 1.5, change
+    assert keeper.decide(progress, ["b"], now=HEARD_AT) == []  # given already
