@@ -385,9 +385,8 @@ class StoppingRule:
     command chatter on the radio link). Until then a stopped vehicle approaches the point
     at the fastest of `approach_speeds_m_s` from which it can still stop short (so that
     it is there sooner once the way is free; faster as the point moves on), and one that
-    another vehicle waits for
-    creeps up at `creep_m_s` however short the gap: stopping short must never make two
-    vehicles wait for each other."""
+    another vehicle waits for creeps up at `creep_m_s` however short the gap: stopping
+    short must never make two vehicles wait for each other."""
 
     reaction_s: float = 0.6
     buffer_m: float = 1.0

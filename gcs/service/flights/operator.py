@@ -94,7 +94,7 @@ class OperatorCommands:
                 )
             self.operator_took(flight_id)
             self._owed.pop(flight_id, None)  # an earlier abort's owed: this one overrides it
-            self._abort_modes[flight_id] = {vid: "" for vid in row.bindings.values()}
+            self._abort_modes[flight_id] = dict.fromkeys(row.bindings.values(), "")
             preempting = asyncio.ensure_future(slot.preempt())
             active = self.book.active.get(flight_id)
             if active is not None and active.fleet.crew.members:
