@@ -197,7 +197,7 @@ async def test_a_vehicle_braked_on_its_way_home_is_sent_home_again(
     at home. One the operator held during the abort stays where he held it."""
     client = gcs.client
     sim = await _fleet(gcs)
-    homes = {sysid: east_north[:2] for sysid, east_north in sim.local_positions().items()}
+    homes = {sysid: where[:2] for sysid, where in sim.local_positions().items()}
     flight = await Flight.make(client, sim)
     await flight.fly()
     await until(lambda: min(ground_speed(sim, s) for s in sim.sysids) > 1.0, 60, "under way")
