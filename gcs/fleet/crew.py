@@ -69,6 +69,7 @@ class Crew:
     aborted: str | None = None  # why, once aborted
     ready: bool = False  # every vehicle holds at its start altitude
     started: bool = False
+    starting: set[str] = field(default_factory=set)  # told to start, not answered yet
     separation: SeparationTracker | None = None
     watch: SeparationWatch | None = None
 

@@ -169,7 +169,7 @@ class Fleet:
         return await launch.prepare(self.crew)
 
     async def start(self) -> dict[str, VehicleOutcome[None]]:
-        return await launch.start(self.crew)
+        return await self._follower.starting(launch.start(self.crew))
 
     async def resume(self) -> dict[str, VehicleOutcome[str]]:
         """Take up a flight its vehicles are already flying (nobody followed it for a

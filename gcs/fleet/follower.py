@@ -10,8 +10,9 @@ mission without us, and a short outage must not end a flight while vehicles are 
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Awaitable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 from gcs.fleet.crew import Crew, Fallback
 from gcs.fleet.events import (
@@ -32,6 +33,8 @@ from gcs.fleet.interventions import abort, fall_back
 from gcs.fleet.member import Member
 from gcs.mission.geodesy import distance_m
 from gcs.mission.motion import Gate
+
+T = TypeVar("T")
 
 UNHEARD_S = 1.0
 """Nothing heard from a vehicle for this long (about ten messages of its streams, a run
@@ -82,6 +85,21 @@ class Follower:
                 break
             await asyncio.sleep(crew.settings.tick_s)
         return self.report(timed_out)
+
+    async def starting(self, start: Awaitable[T]) -> T:
+        """The fleet's `start`, the passing order kept meanwhile for every vehicle whose
+        start was answered: the start waits for the slowest answer (up to 3.2 s over a
+        lossy link), and the others fly their missions meanwhile (fuzzed flight 19782 at
+        10 m/s: two of them, unfollowed for 3 s while a silent one was asked again and
+        again, then held as they sped up, ran on into each other's way, 5.65 m apart
+        with 2R 6 m)."""
+        crew = self.crew
+        task = asyncio.ensure_future(start)
+        while not task.done():
+            await asyncio.wait([task], timeout=crew.settings.tick_s)
+            if not task.done() and crew.aborted is None and crew.settings.keep_order:
+                self._keep_order()
+        return task.result()
 
     @property
     def min_separation_m(self) -> float | None:
@@ -235,6 +253,8 @@ class Follower:
         (it must be let go when its way is clear)."""
         crew = self.crew
         state = member.link.state
+        if uav in crew.starting:
+            return False  # not yet in its mission for sure (`starting`)
         if uav in self.finished or uav in crew.withdrawn or not crew.started:
             if uav in self.finished or (uav in crew.withdrawn and state.down):
                 crew.gatekeeper.out_of_the_way(uav)

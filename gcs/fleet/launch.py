@@ -232,15 +232,19 @@ async def start(crew: Crew) -> dict[str, VehicleOutcome[None]]:
     sent: list[float] = []
     loop = asyncio.get_running_loop()
     held = held_at_start(crew)
+    crew.starting = set(crew.members) - held
+    crew.started = True  # the plan's t = 0: the order is kept from now (`Follower.starting`)
 
     async def start_one(member: Member) -> None:
         member.tracker.start(member.link.state.time_boot_ms)
         sent.append(loop.time())
-        if member.uav_id not in held:
-            await member.actions.start_mission()
+        try:
+            if member.uav_id not in held:
+                await member.actions.start_mission()
+        finally:
+            crew.starting.discard(member.uav_id)
 
     outcomes = await crew.each(start_one, "start")
-    crew.started = True
     spread = (max(sent) - min(sent)) * 1000 if sent else 0.0
     crew.bus.publish(MissionsStarted(tuple(crew.members), spread, crew.flight.duration_s))
     failed = [uav for uav, o in outcomes.items() if not o.ok]

@@ -9,9 +9,8 @@ import sys
 import time
 from collections.abc import Iterable, Iterator
 
+from tests.fuzz.cases import DEFAULT_MAX_UAVS
 from tests.fuzz.runner import Report, fly_seed, fly_seed_quietly
-
-DEFAULT_MAX_UAVS = 6
 
 
 def main(argv: list[str] | None = None) -> int:

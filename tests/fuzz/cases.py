@@ -41,6 +41,10 @@ class Action:
         return f"{self.kind}{who}{where}{lasting} at {self.at_s:.1f} s"
 
 
+DEFAULT_MAX_UAVS = 6
+"""The CI batch's flights: 2 to 6 UAVs (`--max-uavs` for more)."""
+
+
 @dataclass(frozen=True)
 class FuzzCase:
     seed: int
@@ -53,9 +57,12 @@ class FuzzCase:
     actions: tuple[Action, ...] = ()
     storage_delay_s: float = 0.002
     resume: bool = False  # after a restart, the operator resumes the flight (else aborts)
+    max_uavs: int = DEFAULT_MAX_UAVS  # the bound it was drawn with (to replay it)
 
     @classmethod
-    def draw(cls, seed: int, max_uavs: int = 6, link_drops: bool = False) -> FuzzCase:
+    def draw(
+        cls, seed: int, max_uavs: int = DEFAULT_MAX_UAVS, link_drops: bool = False
+    ) -> FuzzCase:
         """The seed's flight; `link_drops`: with one vehicle's link silent for a while
         (drawn on a stream of its own: the rest of the flight is the seed's as without)."""
         rng = np.random.default_rng([seed, 0xF1])
@@ -76,7 +83,7 @@ class FuzzCase:
             actions = tuple(sorted((*actions, _link_drop(seed, uavs)), key=lambda a: a.at_s))
         return cls(
             seed, family, size, uavs, float(rng.choice([5.0, 10.0])), faults, late, actions,
-            float(rng.choice([0.0, 0.002, 0.02])), resume,
+            float(rng.choice([0.0, 0.002, 0.02])), resume, max_uavs,
         )  # fmt: skip
 
     def scenario(self) -> Scenario:

@@ -40,7 +40,7 @@ from planner.model.scenario import Scenario
 from sitl_mock import Simulator
 from sitl_mock.modes import FlightMode
 from sitl_mock.virtual_time import VirtualTimeLoop
-from tests.fuzz.cases import LATE_TAKE_OFF_S, Action, FuzzCase
+from tests.fuzz.cases import DEFAULT_MAX_UAVS, LATE_TAKE_OFF_S, Action, FuzzCase
 from tests.inprocess.service import InProcessService, until
 from tests.inprocess.vehicles import SimulatedVehicles, configs_at_starts
 
@@ -141,17 +141,21 @@ class Report:
         lines += [f"  . {n}" for n in self.notes]
         if self.violations:
             drops = " --link-drops" if any(a.kind == "silence" for a in self.case.actions) else ""
-            lines.append(f"  replay: python -m tests.fuzz --seed {self.case.seed}{drops}")
+            bound = self.case.max_uavs
+            wider = f" --max-uavs {bound}" if bound != DEFAULT_MAX_UAVS else ""
+            lines.append(f"  replay: python -m tests.fuzz --seed {self.case.seed}{wider}{drops}")
         return "\n".join(lines)
 
 
-def fly_seed(seed: int, max_uavs: int = 6, link_drops: bool = False) -> Report:
+def fly_seed(seed: int, max_uavs: int = DEFAULT_MAX_UAVS, link_drops: bool = False) -> Report:
     """The seed's flight, in a data directory of its own (removed afterwards)."""
     with tempfile.TemporaryDirectory(prefix=f"fuzz-{seed}-") as tmp:
         return run(FuzzCase.draw(seed, max_uavs, link_drops), Path(tmp) / "data")
 
 
-def fly_seed_quietly(seed: int, max_uavs: int = 6, link_drops: bool = False) -> Report:
+def fly_seed_quietly(
+    seed: int, max_uavs: int = DEFAULT_MAX_UAVS, link_drops: bool = False
+) -> Report:
     """`fly_seed` without the lines each in-process service prints when it starts (where
     its API and console are): a campaign prints its failing flights only. Here, not in
     `__main__`, so that Dask workers can import it."""
