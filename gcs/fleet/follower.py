@@ -10,6 +10,7 @@ mission without us, and a short outage must not end a flight while vehicles are 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Awaitable
 from dataclasses import dataclass
 from typing import Any, TypeVar
@@ -92,14 +93,21 @@ class Follower:
         lossy link), and the others fly their missions meanwhile (fuzzed flight 19782 at
         10 m/s: two of them, unfollowed for 3 s while a silent one was asked again and
         again, then held as they sped up, ran on into each other's way, 5.65 m apart
-        with 2R 6 m)."""
+        with 2R 6 m). A start cancelled (the operator's hold) stops asking at once."""
+        keeping = asyncio.ensure_future(self._keep_order_every_tick())
+        try:
+            return await start
+        finally:
+            keeping.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await keeping  # (raises what went wrong in it)
+
+    async def _keep_order_every_tick(self) -> None:
         crew = self.crew
-        task = asyncio.ensure_future(start)
-        while not task.done():
-            await asyncio.wait([task], timeout=crew.settings.tick_s)
-            if not task.done() and crew.aborted is None and crew.settings.keep_order:
+        while True:
+            await asyncio.sleep(crew.settings.tick_s)
+            if crew.aborted is None and crew.settings.keep_order:
                 self._keep_order()
-        return task.result()
 
     @property
     def min_separation_m(self) -> float | None:

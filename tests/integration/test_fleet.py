@@ -225,3 +225,25 @@ async def test_a_vehicle_away_from_its_start_starts_nobody(
     report = await fleet.fly()
     assert not report.completed and "from its start" in report.failed["uav1"]
     assert not any(sim.state(k).armed for k in (1, 2))
+
+
+async def test_a_start_cancelled_while_a_vehicle_does_not_answer_asks_it_no_more(
+    vehicles: SimulatedVehicles, opened: list[VehicleLink]
+) -> None:
+    """The start asks a silent vehicle for AUTO again and again while the order is kept for
+    the others (`Follower.starting`); cancelled (the operator's hold during the start), it
+    stops asking at once: the vehicle, heard again, hovers on in GUIDED."""
+    scenario, the_plan = planned("case-1")
+    sim = await vehicles.at_starts(scenario)
+    fleet = await _fleet(vehicles, sim, opened, scenario, the_plan, FleetSettings())
+    for step in (fleet.upload, fleet.prepare):
+        assert all(o.ok for o in (await step()).values())
+    sim.silence(2, 1.0)
+    starting = asyncio.ensure_future(fleet.start())
+    await asyncio.sleep(0.5)
+    starting.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await starting
+    await asyncio.sleep(5.0)  # the silence over, and the start's 3.2 s of asking with it
+    assert sim.state(1).mode == "AUTO"
+    assert sim.state(2).mode == "GUIDED" and sim.state(2).armed
