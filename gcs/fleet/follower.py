@@ -148,6 +148,7 @@ class Follower:
         for m in self.crew.members.values():
             state = m.link.state
             for k in m.tracker.newly_passed(state):
+                self.crew.commander.item_reached(m.uav_id)
                 visit = m.tracker.visits[k]
                 self.crew.bus.publish(
                     ItemReached(m.uav_id, visit.seq, m.tracker.passed_at(k), visit.arrive)
@@ -240,12 +241,17 @@ class Follower:
         not stopped (a pause the vehicle acknowledged holds without the ground station;
         anything else flies on, its mission going on without it). Not the link's 4 s:
         by then a vehicle that others meet may be too close to stop for it (fuzzed
-        flight 1014 with uav4's link silent 5 s: uav3 could no longer wait)."""
+        flight 1014 with uav4's link silent 5 s: uav3 could no longer wait). Not one
+        whose start is not answered yet: it may still hover at its start, and the start
+        ends only once it answers or has failed (taken to fly on, a vehicle silent during
+        the start led every encounter ahead, its followers were turned round where they
+        stood, and the flight stuck after passing 5.30 m apart: fuzzed flight 19888)."""
         crew, now = self.crew, asyncio.get_running_loop().time()
         return [
             uav
             for uav, m in crew.members.items()
             if crew.started
+            and uav not in crew.starting
             and now - m.link.state.last_heard > UNHEARD_S
             and uav not in self.finished
             and uav not in crew.withdrawn

@@ -176,6 +176,14 @@ FOUND_LINK_DROPS = {
     "the start asked it again and again for 3.2 s, and the others flew their missions "
     "unfollowed meanwhile; then held for uav2's failed start, uav3 and uav8, speeding up, "
     "ran on into each other's way (5.65 m). The order is now kept from the first answer",
+    (19864, 10.0, 12): "gap swap of 8 UAVs at 10 m/s, 20 % loss in on two: uav3, creeping "
+    "at 0.5 m/s 6 m short of its limit, passed a DO_CHANGE_SPEED item of its mission and "
+    "sped up; paused 1.6 m short once faster than its approach, it ran on 4.6 m, 4.05 m "
+    "from uav8. An approach is now given its speed again at each item reached",
+    (19888, 2.0, 12): "crossing of 10 UAVs at 10 m/s, uav9 silent during the start: with "
+    "the order kept during the start (19782), uav9 was taken to fly on unheard and led "
+    "every encounter ahead; its followers were turned round where they stood, two passed "
+    "5.30 m apart and the flight stuck. A vehicle whose start is unanswered is not",
 }
 """Flights with a link drop (`--link-drops`), each with the drop's length it failed with
 (the seed draws its moment and vehicle) and the bound on UAVs it was drawn with."""

@@ -197,3 +197,23 @@ async def test_an_approach_sped_up_is_sent_its_new_speed_without_a_stop() -> Non
     await settled(commander)
     assert link.sent == ["speed 1", "resume", "speed 3"]
     await commander.close()
+
+
+async def test_an_approach_is_sent_its_speed_again_at_each_item_its_mission_reaches() -> None:
+    """A DO_CHANGE_SPEED item of the mission sets the next leg's speed whatever the
+    approach asked for: at each item reached, an approaching vehicle is given its speed
+    again (and nothing else); one flying on, or stopped, is sent nothing."""
+    commander, link = recorded()
+    commander.found_stopped("uav1")
+    commander.want("uav1", Gate.CREEP, 0.5)
+    await settled(commander)
+    assert link.sent == ["speed 0.5", "resume"]
+    commander.item_reached("uav1")
+    await settled(commander)
+    assert link.sent == ["speed 0.5", "resume", "speed 0.5"]
+    commander.want("uav1", Gate.STOP)
+    await settled(commander)
+    commander.item_reached("uav1")
+    await settled(commander)
+    assert link.sent == ["speed 0.5", "resume", "speed 0.5", "pause"]
+    await commander.close()
