@@ -11,9 +11,10 @@ pause while it boots, before it streams anything), so it is only asked for again
 
 Asking can fail unseen: REQUEST_DATA_STREAM has no answer, and on a lossy uplink the
 fallback to it (after three SET_MESSAGE_INTERVALs went unacknowledged) may be lost too.
-So after each ask, until a position arrives, they are asked for again every few heartbeats:
-fuzzed flight 19087's uav7, with 20 % loss towards it, was never asked successfully and
-its flight could not start ("the vehicle reports no position" after 100 s).
+So after each ask, until the position and the mission's current item arrive, what has
+not come is asked for again every few heartbeats: fuzzed flight 19087's uav7, with 20 %
+loss towards it, was never asked successfully and its flight could not start ("the
+vehicle reports no position" after 100 s).
 """
 
 from __future__ import annotations
@@ -33,6 +34,12 @@ FALLBACK_STREAMS = (
     mavlink2.MAV_DATA_STREAM_EXTRA2,  # VFR_HUD
 )
 FALLBACK_RATE_HZ = 4
+FOLLOWED = ("GLOBAL_POSITION_INT", "MISSION_CURRENT")
+"""The streams a flight cannot be followed without: where each vehicle is, and which item
+it flies (an approach restarts that item). Each is asked for until it flows: with only
+the position flowing (the MISSION_CURRENT interval unanswered on a lossy link, and the
+fallback lost), the item seen was 5 s old, and an approach sent the vehicle back to a
+waypoint it had passed, 1.67 m from the vehicle waiting there (fuzzed flight 20014)."""
 GAP_CHECK_PERIODS = 4  # heartbeat periods to wait for the position stream after a gap
 MIN_CHECK_S = 0.2
 
@@ -82,19 +89,28 @@ class TelemetryStreams:
         return max(GAP_CHECK_PERIODS * (self.link.heartbeat_period_s or 1.0), MIN_CHECK_S)
 
     async def _until_flowing(self) -> None:
-        """Ask again, every few heartbeats, until a position comes."""
+        """Ask again, every few heartbeats, until every stream a flight is followed by
+        (`FOLLOWED`) comes."""
         try:
-            while True:
-                try:
-                    await self.link.wait_for("GLOBAL_POSITION_INT", timeout=self._check_s())
-                    return
-                except WaitTimeoutError:
-                    with contextlib.suppress(GcsError):
-                        await request_telemetry(self.link, self.rates_hz)
+            while missing := await self._not_flowing():
+                with contextlib.suppress(GcsError):
+                    await request_telemetry(self.link, missing)
         except GcsError:
             pass  # the link is lost (asked for again once regained) or closed
         finally:
             self._checking = False
+
+    async def _not_flowing(self) -> dict[str, float]:
+        """The followed streams that did not come within a few heartbeats, at their rates."""
+        missing = {}
+        for name in FOLLOWED:
+            if name not in self.rates_hz:
+                continue
+            try:
+                await self.link.wait_for(name, timeout=self._check_s())
+            except WaitTimeoutError:
+                missing[name] = self.rates_hz[name]
+        return missing
 
     async def _check_after_gap(self) -> None:
         try:

@@ -184,6 +184,10 @@ FOUND_LINK_DROPS = {
     "the order kept during the start (19782), uav9 was taken to fly on unheard and led "
     "every encounter ahead; its followers were turned round where they stood, two passed "
     "5.30 m apart and the flight stuck. A vehicle whose start is unanswered is not",
+    (20014, 2.0, 12): "crossing of 8 UAVs at 5 m/s, 20 % loss both ways on uav3: its "
+    "MISSION_CURRENT interval requests and their fallback were lost, so only positions "
+    "streamed; an approach restarted the item last seen, 5 s old, and uav3 flew back to "
+    "a waypoint it had passed, 1.67 m from uav4 waiting there",
 }
 """Flights with a link drop (`--link-drops`), each with the drop's length it failed with
 (the seed draws its moment and vehicle) and the bound on UAVs it was drawn with."""

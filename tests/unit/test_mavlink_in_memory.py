@@ -9,6 +9,7 @@ rebuilt items) and drives the real link, command and mission-protocol code again
 from __future__ import annotations
 
 import asyncio
+import itertools
 import math
 from collections.abc import Callable
 from typing import Any
@@ -613,6 +614,56 @@ async def test_streams_asked_for_while_every_ask_is_lost_are_asked_for_until_the
         assert len(asks) == 9, "asked again until the ninth ask was answered, not beyond"
     finally:
         beating.cancel()
+        await link.close()
+
+
+@pytest.mark.virtual_clock
+async def test_a_mission_current_stream_never_set_up_is_asked_for_until_it_flows() -> None:
+    """The position stream set up, MISSION_CURRENT's three SET_MESSAGE_INTERVALs and the
+    fallback REQUEST_DATA_STREAM lost: positions flowed, the item did not, and an approach
+    restarted the item seen 5 s before, sending the vehicle back to a waypoint it had
+    passed (fuzzed flight 20014, 1.67 m). MISSION_CURRENT is asked for until it flows,
+    and nothing that flows is asked for again."""
+    link, peer = await linked(silent)
+    position_id, current_id = (
+        mavlink2.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+        mavlink2.MAVLINK_MSG_ID_MISSION_CURRENT,
+    )
+    lost = {current_id: 3}
+    streaming: set[int] = set()
+
+    def lossy_towards_it(msg: Any) -> list[Any]:
+        if msg.get_type() != "COMMAND_LONG":
+            return []  # the fallback REQUEST_DATA_STREAMs are lost too
+        wanted = int(msg.param1)
+        if lost.get(wanted):
+            lost[wanted] -= 1
+            return []
+        streaming.add(wanted)
+        return [peer.codec.command_ack_encode(msg.command, mavlink2.MAV_RESULT_ACCEPTED)]
+
+    async def streams() -> None:
+        for tick in itertools.count():
+            await asyncio.sleep(0.2)
+            if tick % 5 == 0:
+                peer.heartbeat()
+            if position_id in streaming:
+                peer.send(peer.codec.global_position_int_encode(0, 1, 2, 3, 4, 0, 0, 0, 0))
+            if current_id in streaming:
+                peer.send(peer.codec.mission_current_encode(4))
+
+    peer.reply = lossy_towards_it
+    flowing = asyncio.ensure_future(streams())
+    try:
+        assert not await TelemetryStreams(
+            link, {"GLOBAL_POSITION_INT": 5.0, "MISSION_CURRENT": 2.0}
+        ).start()
+        current = await link.wait_for("MISSION_CURRENT", timeout=30.0)
+        assert current.seq == 4
+        asked = [int(m.param1) for m in peer.sent("COMMAND_LONG")]
+        assert asked.count(current_id) == 4 and asked.count(position_id) == 1, asked
+    finally:
+        flowing.cancel()
         await link.close()
 
 
