@@ -18,10 +18,14 @@ from gcs.mavlink.link import VehicleLink
 
 ANSWER_TIMEOUT_S = 1.0
 ATTEMPTS = 8
-"""With 20 % loss each way a try goes unanswered 36 % of the time: four tries left one
-parameter in 60 unset, and an upload sets several on every vehicle (a six-UAV flight at
-20 % loss was refused for "did not confirm FS_OPTIONS = 24 after 4 tries"). Eight leave
-one in 3,500."""
+"""Tries of a PARAM_SET. With 20 % loss each way a try goes unanswered 36 % of the time:
+four left one parameter in 60 unset, and an upload sets several on every vehicle (a
+six-UAV flight at 20 % loss was refused for "did not confirm FS_OPTIONS = 24 after 4
+tries"). Eight leave one in 3,500."""
+LOOKUP_ATTEMPTS = 4
+"""Tries of a PARAM_REQUEST_READ. A parameter the vehicle does not have (an older
+firmware's) is never answered, so a lookup waits out every try: 4 s, within the link's
+timeout while nothing else is heard."""
 
 
 class ParameterError(GcsError):
@@ -57,7 +61,7 @@ async def find_parameter(link: VehicleLink, names: Sequence[str]) -> tuple[str, 
     wanted = set(names)
     link.ensure_up()
     with link.subscribe(["PARAM_VALUE"]) as sub:
-        for _ in range(ATTEMPTS):
+        for _ in range(LOOKUP_ATTEMPTS):
             for name in names:
                 link.send(
                     link.codec.param_request_read_encode(link.sysid, link.compid, name.encode(), -1)
