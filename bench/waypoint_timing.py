@@ -7,9 +7,11 @@ are judged against (at most 1.15 times that, issue 22). This flies one vehicle a
 through the in-process service, on the ArduCopter-flavoured mock and the virtual clock
 (`tests/fuzz/runner.py`: the same flight on every run), nobody else in its way, and
 compares: the error at every waypoint before the landing item (reached at touch-down) and
-the mission time over the timed one. Run, from the repository root:
+the mission time over the timed one. With `--fleet N` every scenario has N UAVs flown
+together (and the gap swap too), so that the timing of the waits the passing order makes
+is measured as well. Run, from the repository root:
 
-    .venv/bin/python bench/waypoint_timing.py [--out bench/results/waypoint_timing.md]
+    .venv/bin/python bench/waypoint_timing.py [--fleet N] [--out FILE.md]
 
 To measure an older tree, run its copy of this file from that tree.
 """
@@ -49,9 +51,13 @@ class Row:
     timed_s: float
 
 
-def fly_alone(family: str, seed: int, speed: float) -> Row:
+def fly(family: str, seed: int, speed: float, uavs: int = 1) -> Row | None:
+    """The flight's row; None if the product refused its speed (a fleet's plan may be)."""
+    size = 9 if family == "gap-swap" else SIZE  # the gap swap's own size, as fuzzed
     with tempfile.TemporaryDirectory(prefix="waypoints-") as tmp:
-        report = run(FuzzCase(seed, family, SIZE, 1, speed), Path(tmp) / "data")
+        report = run(FuzzCase(seed, family, size, uavs, speed), Path(tmp) / "data")
+    if report.outcome == "refused" and not report.violations:
+        return None
     if report.violations or report.mission_s is None or report.timed_s is None:
         raise RuntimeError(report.summary())
     return Row(family, seed, speed, report.waypoint_errors(), report.mission_s, report.timed_s)
@@ -84,11 +90,17 @@ def table(rows: list[Row]) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write the table (markdown) here too")
+    parser.add_argument("--fleet", type=int, default=1, help="UAVs per flight (default 1)")
     args = parser.parse_args()
     started = time.perf_counter()
-    rows = [
-        fly_alone(family, seed, speed) for family in FAMILIES for seed in SEEDS for speed in SPEEDS
+    families = FAMILIES if args.fleet == 1 else (*FAMILIES, "gap-swap")
+    flown = [
+        fly(family, seed, speed, args.fleet)
+        for family in families
+        for seed in SEEDS
+        for speed in SPEEDS
     ]
+    rows = [row for row in flown if row is not None]
     commit = subprocess.run(
         ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
         capture_output=True,
@@ -97,10 +109,11 @@ def main() -> None:
     ).stdout.strip()
     lines = [
         f"Run {datetime.now(UTC):%Y-%m-%d %H:%M} UTC at {commit or '?'} (plus the working "
-        f"tree's changes, if any) on {describe_machine()}, "
+        f"tree's changes, if any), {args.fleet} UAV(s) per flight, on {describe_machine()}, "
         f"{time.perf_counter() - started:.0f} s.",
         "",
         *table(rows),
+        f"Refused (a speed the plan cannot be flown at safely): {len(flown) - len(rows)}.",
     ]
     print("\n".join(lines))
     if args.out:

@@ -92,7 +92,8 @@ class _Vehicle:
     limits: CopterLimits
     vertex_s: list[float]  # plain floats: stepped 20 times a simulated second, one by one
     vertex_speed: list[float]  # the highest speed at each vertex (corners, the end)
-    leg_speed: list[float]  # m/s of each leg
+    leg_speed: list[float]  # m/s of each leg, as flown
+    commanded: list[float]  # m/s of each leg, as its mission sets it
     s: float = 0.0
     v: float = 0.0
     a: float = 0.0
@@ -103,6 +104,9 @@ class _Vehicle:
     starting_s: float = 0.0  # still to wait before an approach from a stop moves it
     ceiling: float = math.inf  # the speed of the S-curve into the stop it slows for
     stopping_from: dict[int, float] = field(default_factory=dict)  # stop vertex: speed then
+    clock: float = 1.0  # how fast its S-curve runs: 1 flying, down to 0 paused
+    clock_rate: float = 0.0  # the clock's change per second
+    desired_m_s: float | None = None  # the speed last commanded (None: its legs')
 
     @classmethod
     def of(
@@ -113,7 +117,7 @@ class _Vehicle:
         turns = turn_angles(path.xy) if len(s) > 2 else np.zeros(0)
         at_rest = np.abs(s[:, None] - np.asarray(stops)[None, :]).min(axis=1, initial=np.inf)
         knots, bound, legs = speed_profile(s, leg_speed, turns, limits, at_rest < STOP_MATCH_M)
-        return cls(path, limits, knots.tolist(), bound.tolist(), legs.tolist())
+        return cls(path, limits, knots.tolist(), bound.tolist(), legs.tolist(), leg_speed.tolist())
 
     def cap(self, rule: StoppingRule) -> float:
         """The speed the vehicle aims for here: its leg's (or its gate's), until it must
@@ -123,8 +127,6 @@ class _Vehicle:
         no faster than the end of an S-curve from the speed it had there (`ceiling`). The
         vertex after next counts too: a vertex's speed assumes the vehicle gets there no
         longer speeding up, which one that sets off just before it is not."""
-        if self.gate == Gate.STOP:
-            return 0.0
         k = self._next_vertex()
         if self.slowing_for and self.v < STOPPED_M_S:  # stopped for it
             if k in self.slowing_for and self.vertex_s[k] - self.s <= ARRIVED_M:
@@ -134,8 +136,8 @@ class _Vehicle:
         self.slowing_for.intersection_update(range(k, len(self.vertex_s)))
         self.stopping_from = {j: v for j, v in self.stopping_from.items() if j in self.slowing_for}
         leg = self.leg_speed[max(0, k - 1)] if len(self.leg_speed) else 0.0
-        if self.gate == Gate.CREEP:
-            leg = min(leg, self.approach_m_s)
+        if self.desired_m_s is not None:
+            leg = min(leg, self.desired_m_s)
         peak = self.v + max(self.a, 0.0) ** 2 / (2 * self.limits.s_curve_jerk_m_s3)  # once `a` is 0
         for j in range(k, min(k + 2, len(self.vertex_s))):
             ahead = self.vertex_speed[j]
@@ -159,29 +161,79 @@ class _Vehicle:
     def _next_vertex(self) -> int:
         return min(bisect.bisect_right(self.vertex_s, self.s), len(self.vertex_s) - 1)
 
+    @property
+    def speed(self) -> float:
+        """The speed it flies at (and reports): its S-curve's, slowed by the clock."""
+        return self.v * self.clock
+
+    @property
+    def accel(self) -> float:
+        """The acceleration it flies with (and reports)."""
+        return self.a * self.clock**2 + self.v * self.clock_rate
+
+    def command(self, gate: Gate, approach_m_s: float | None = None) -> None:
+        """The ground station's commands for a new gate, as the flight sends them
+        (`GateCommander`): a pause for STOP; an approach from a stop flies its item afresh
+        from rest, at the approach's speed; otherwise the speed is set (the mission's for
+        GO) and a paused clock resumed."""
+        if gate == Gate.CREEP and self.gate == Gate.STOP:
+            self.v = self.a = self.clock_rate = 0.0
+            self.clock = 1.0
+            self.starting_s = APPROACH_LAG_S
+        if gate != Gate.STOP:
+            self.desired_m_s = approach_m_s if gate == Gate.CREEP else None
+        self.gate = gate
+
     def step(self, target: float, dt: float) -> None:
-        """Chase `target` speed: acceleration from a square-root shaper, ramped at the jerk
-        limit, as ArduPilot's shape_vel_accel does (a paused mission: at the position
-        controller's jerk)."""
+        """Chase `target` speed along the S-curve: acceleration from a square-root
+        shaper, ramped at the jerk limit, as ArduPilot's shape_vel_accel does, on the
+        curve's own clock."""
         limits = self.limits
         if self.starting_s > 0:
             self.starting_s -= dt
             target = 0.0
-        jerk = limits.stop_jerk_m_s3 if self.gate == Gate.STOP else limits.s_curve_jerk_m_s3
-        error = target - self.v
-        wanted = min(math.sqrt(2 * jerk * abs(error)), limits.accel_m_s2)
-        wanted = math.copysign(wanted, error) if error else 0.0
-        change = jerk * dt
-        self.a += min(max(wanted - self.a, -change), change)
-        self.v = max(0.0, self.v + self.a * dt)
-        if self.v > self.ceiling:  # into a stop: along the S-curve's end, not short of it
-            self.a -= (self.v - self.ceiling) / dt
+        self._run_clock(dt)
+        dt_curve = self.clock * dt
+        jerk = limits.s_curve_jerk_m_s3
+        self.a += _shaped(target - self.v, self.a, jerk, limits.accel_m_s2, dt_curve)
+        self.v = max(0.0, self.v + self.a * dt_curve)
+        if self.v > self.ceiling and dt_curve > 0:  # into a stop: along the S-curve's end
+            self.a -= (self.v - self.ceiling) / dt_curve
             self.v = self.ceiling
         if self.v == 0.0 and self.a < 0:
             self.a = 0.0
-        self.s = min(self.path.length, self.s + self.v * dt)
+        self.s = min(self.path.length, self.s + self.v * dt_curve)
         if self.path.length - self.s < 1e-3 and self.v < 0.05:
             self.s, self.v, self.a, self.done = self.path.length, 0.0, 0.0, True
+
+    def _run_clock(self, dt: float) -> None:
+        """A paused mission is not braked: AC_WPNav shapes an offset speed from the
+        track's speed down to nothing (a pause) or back up (a resume) at WPNAV's
+        acceleration and the position controller's jerk, and runs its S-curve on that
+        over the track's speed (SITL paused speeding up at 3.4 m/s on a 10 m/s track went
+        on 7 m in 4 s, and resumed took 4 s to its speed again; stopped at once, the
+        timing ran seconds ahead of every wait)."""
+        goal = 0.0 if self.gate == Gate.STOP else 1.0
+        if self.clock == goal and self.clock_rate == 0.0:
+            return
+        leg = self.commanded[max(0, self._next_vertex() - 1)] if self.commanded else 1.0
+        track = max(self.desired_m_s or leg, 1e-3)
+        limits, rate = self.limits, self.clock_rate * track
+        error = (goal - self.clock) * track
+        rate += _shaped(error, rate, limits.stop_jerk_m_s3, limits.accel_m_s2, dt)
+        clock = min(max(self.clock + rate * dt / track, 0.0), 1.0)
+        if clock in (0.0, 1.0) and (clock - self.clock) * rate <= 0:
+            rate = 0.0
+        self.clock, self.clock_rate = clock, rate / track
+
+
+def _shaped(error: float, accel: float, jerk: float, most: float, dt: float) -> float:
+    """The change of `accel` over `dt` that closes a speed `error` as a square-root shaper
+    does: no faster than `most`, ramped at `jerk`."""
+    wanted = min(math.sqrt(2 * jerk * abs(error)), most)
+    wanted = math.copysign(wanted, error) if error else 0.0
+    change = jerk * dt
+    return min(max(wanted - accel, -change), change)
 
 
 def fly(
@@ -217,19 +269,21 @@ def fly(
                 continue
             at, _ = limits_now[uav]
             gap, waited = at - vehicle.s, uav in waited_on
-            accel = vehicle.limits.accel_m_s2 if t == 0.0 else vehicle.a  # as `launch` starts
+            accel = vehicle.limits.accel_m_s2 if t == 0.0 else vehicle.accel  # as `launch` starts
             gate = rule.decide(
-                vehicle.gate, gap, vehicle.v, accel, vehicle.limits, waited,
+                vehicle.gate, gap, vehicle.speed, accel, vehicle.limits, waited,
                 vehicle.approach_m_s or None,
             )  # fmt: skip
             if gate == Gate.CREEP and vehicle.gate != Gate.CREEP:
                 vehicle.approach_m_s = rule.approach_speed(gap, vehicle.limits, waited) or 0.0
-                vehicle.starting_s = APPROACH_LAG_S if vehicle.gate == Gate.STOP else 0.0
             elif gate == Gate.CREEP:
                 sent = vehicle.approach_m_s or None
                 faster = rule.faster_approach(gap, vehicle.limits, waited, sent)
                 vehicle.approach_m_s = faster or vehicle.approach_m_s
-            vehicle.gate = gate
+            if gate != vehicle.gate or vehicle.desired_m_s != (
+                vehicle.approach_m_s if gate == Gate.CREEP else None
+            ):
+                vehicle.command(gate, vehicle.approach_m_s)
             before = vehicle.s
             vehicle.step(vehicle.cap(rule), STEP_S)
             if vehicle.s > before + 1e-9:
