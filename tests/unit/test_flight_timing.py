@@ -39,9 +39,9 @@ def test_a_paused_vehicle_stops_within_the_stopping_distance_it_is_given(
     speed: float, accel: float, steady: bool
 ) -> None:
     """The model's pause (its S-curve going on while its clock runs down) from any speed,
-    speeding up at `accel` on a 15 m/s track or `steady` on a track at its speed, lands
-    within the distance `stopping_distance` promises (what the gatekeeper leaves room
-    for)."""
+    speeding up at `accel` on a 15 m/s track (above 0.05 m/s², where `stopping_distance`
+    counts it as speeding up) or `steady` on a track at its speed, lands within the
+    distance `stopping_distance` promises (what the gatekeeper leaves room for)."""
     path = PlannedPath("a", np.array([[0.0, 0.0], [1000.0, 0.0]]), np.zeros(2), np.zeros(2), 3.0)
     limits = CopterLimits(speed_m_s=15.0)
     vehicle = _Vehicle.of(path, np.array([15.0]), limits)
@@ -56,28 +56,25 @@ def test_a_paused_vehicle_stops_within_the_stopping_distance_it_is_given(
     assert vehicle.s <= limits.stopping_distance(speed, accel, track_m_s=track) * 1.02 + 0.05
 
 
-@pytest.mark.parametrize(("speed", "accel", "track", "metres"), [(3.4, 1.0, 10.0, 7.0)])
-def test_a_paused_vehicle_runs_on_and_resumes_as_real_arducopter_does(
-    speed: float, accel: float, track: float, metres: float
-) -> None:
+def test_a_paused_vehicle_runs_on_and_resumes_as_real_arducopter_does() -> None:
     """A pause runs the S-curve's clock down, and a resume runs it up again, each over
     the seconds WPNAV's acceleration takes from the track's speed: SITL paused at 3.4 m/s
     speeding up on a 10 m/s track (the gap swap at 10 m/s) went on 7 m over 4 s, and
-    resumed took 4 s to its speed again. Stopped at once, as the timing did, every wait
-    came out seconds short."""
+    resumed took 4 s to its speed again. Stopped at once, as the timing did (4.0 m in
+    1.9 s from there), every wait came out seconds short."""
     path = PlannedPath("a", np.array([[0.0, 0.0], [1000.0, 0.0]]), np.zeros(2), np.zeros(2), 3.0)
-    vehicle = _Vehicle.of(path, np.array([track]), CopterLimits(speed_m_s=track))
-    vehicle.v, vehicle.a = speed, accel
+    vehicle = _Vehicle.of(path, np.array([10.0]), LIMITS)
+    vehicle.v, vehicle.a = 3.4, 1.0
     vehicle.command(Gate.STOP)
-    seconds = 0.0
-    while vehicle.speed > 0.05:
+    steps = 0
+    while vehicle.speed > 0.05 and steps < 1000:
         vehicle.step(vehicle.cap(StoppingRule()), 0.01)
-        seconds += 0.01
-    assert metres <= vehicle.s <= 1.8 * metres
-    assert 3.0 <= seconds <= 6.0
+        steps += 1
+    assert 7.0 <= vehicle.s <= 12.0
+    assert 300 <= steps <= 600  # 3 to 6 s
     paused_at, curve = vehicle.s, vehicle.v
     vehicle.command(Gate.GO)
-    for _ in range(200):  # 2 s: the clock only half way up again
+    for _ in range(200):  # 2 s: the clock only part of the way up again
         vehicle.step(vehicle.cap(StoppingRule()), 0.01)
     assert 0.2 * curve < vehicle.speed < 0.8 * vehicle.v
     assert vehicle.s - paused_at < 2 * curve
