@@ -172,10 +172,10 @@ class _Vehicle:
         return self.a * self.clock**2 + self.v * self.clock_rate
 
     def command(self, gate: Gate, approach_m_s: float | None = None) -> None:
-        """The ground station's commands for a new gate, as the flight sends them
-        (`GateCommander`): a pause for STOP; an approach from a stop flies its item afresh
-        from rest, at the approach's speed; otherwise the speed is set (the mission's for
-        GO) and a paused clock resumed."""
+        """The ground station's commands for `gate`, as the flight sends them
+        (`GateCommander`; the same gate again changes nothing): a pause for STOP; an
+        approach from a stop flies its item afresh from rest, at the approach's speed;
+        otherwise the speed is set (the mission's for GO) and a paused clock resumed."""
         if gate == Gate.CREEP and self.gate == Gate.STOP:
             self.v = self.a = self.clock_rate = 0.0
             self.clock = 1.0
@@ -280,10 +280,7 @@ def fly(
                 sent = vehicle.approach_m_s or None
                 faster = rule.faster_approach(gap, vehicle.limits, waited, sent)
                 vehicle.approach_m_s = faster or vehicle.approach_m_s
-            if gate != vehicle.gate or vehicle.desired_m_s != (
-                vehicle.approach_m_s if gate == Gate.CREEP else None
-            ):
-                vehicle.command(gate, vehicle.approach_m_s)
+            vehicle.command(gate, vehicle.approach_m_s)
             before = vehicle.s
             vehicle.step(vehicle.cap(rule), STEP_S)
             if vehicle.s > before + 1e-9:
