@@ -155,7 +155,9 @@ class Fleet:
             if geofence is not None:
                 await upload_fence(member.client, geofence, member.altitude_m)
             result = await _upload(member)
-            await brake_on_link_loss(member.link, brake_after_s)
+            silent_s = await brake_on_link_loss(member.link, brake_after_s)
+            if silent_s is not None:
+                self.crew.gatekeeper.silent_s[member.uav_id] = silent_s
             if geofence is not None:
                 await enable_fence(member.link, geofence)
             return result

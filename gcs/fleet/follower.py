@@ -227,7 +227,7 @@ class Follower:
         for uav in heard.intersection(gated):
             crew.commander.heard(uav)
         for change in changes:
-            crew.commander.want(change.uav_id, change.gate, change.speed_m_s)
+            crew.commander.want(change.uav_id, change.gate, change.speed_m_s, change.speed_first)
             if change.gate == Gate.GO:
                 crew.bus.publish(WaitOver(change.uav_id))
             else:

@@ -50,6 +50,7 @@ class GateChange:
     waits_for: str | None
     gap_m: float
     speed_m_s: float | None = None  # of an approach (CREEP)
+    speed_first: bool = False  # an approach from a stop given its speed before it sets off
 
 
 class Gatekeeper:
@@ -64,6 +65,9 @@ class Gatekeeper:
         self.order = order
         self.limits = dict(limits)
         self.rule = rule or StoppingRule()
+        self.silent_s: dict[str, float] = {}
+        """How long each vehicle that hears nothing from us flies on before its own
+        failsafe stops it, on its own clock (`link_loss`); not known: for ever."""
         self.gates = dict.fromkeys(self.limits, Gate.GO)
         self.waits_for: dict[str, str | None] = dict.fromkeys(self.limits)
         self.approach: dict[str, float | None] = {}  # of the vehicles approaching (CREEP)
@@ -108,6 +112,9 @@ class Gatekeeper:
             gate = self.rule.decide(
                 self.gates[uav], gap, speed, accel, own, waited, self.approach.get(uav)
             )
+            speed_first = self._speed_first(gate, uav, gap)
+            if speed_first and speed >= STOPPED_M_S:
+                gate, speed_first = Gate.STOP, False  # not yet: made current, it jerks on
             waits_for = limit.leader if gate != Gate.GO else None
             faster = None
             if gate == Gate.CREEP and self.gates[uav] != Gate.CREEP:
@@ -117,9 +124,24 @@ class Gatekeeper:
                 self.approach[uav] = faster or self.approach.get(uav)
             if gate != self.gates[uav] or waits_for != self.waits_for[uav] or faster:
                 approach = self.approach.get(uav) if gate == Gate.CREEP else None
-                changes.append(GateChange(uav, gate, waits_for, gap, approach))
+                changes.append(GateChange(uav, gate, waits_for, gap, approach, speed_first))
             self.gates[uav], self.waits_for[uav] = gate, waits_for
         return changes
+
+    def _speed_first(self, gate: Gate, uav: str, gap_m: float) -> bool:
+        """Whether an approach from a stop must have its speed before it sets off. Sent
+        on, its item is made current (flown afresh from rest, at the mission's speed),
+        then slowed (`FlightActions.approach`); should the link fall silent between the
+        two, the vehicle flies on at its mission's speed until its own failsafe brakes
+        it (fuzzed flight 20276: uav7, sent on 3.1 m short of its limit, ran 4.4 m, and
+        the vehicle it waited for passed 5.87 m from it, 2R 6 m). Given its speed first,
+        it sets off no faster whatever is lost; only once it stands, for ArduCopter
+        starts an item made current at where a moving vehicle would stop (SITL at
+        0.5 m/s: 1.7 m/s forward and 0.5 m back)."""
+        if gate != Gate.CREEP or self.gates[uav] != Gate.STOP:
+            return False
+        silent_s = self.silent_s.get(uav, math.inf)
+        return gap_m < self.limits[uav].unheard_run_m(silent_s)
 
     def _reckoned(self, uav: str, p: PathProgress, now: float | None) -> tuple[float, float]:
         """Where along its path a vehicle may be by `now`, and how fast: its last place
@@ -250,16 +272,21 @@ class GateCommander:
         self.applied = dict.fromkeys(actions, Gate.GO)
         self._wanted = dict.fromkeys(actions, Gate.GO)
         self._approach: dict[str, float] = {}  # the speed wanted of an approach
+        self._speed_first: dict[str, bool] = {}  # an approach from a stop slowed first
         self._slowed: dict[str, float | None] = {}  # the approach speed last commanded
         self._tasks: dict[str, asyncio.Task[None]] = {}
         self._braking: set[str] = set()  # to be stopped out of their missions
         self._unanswered: set[str] = set()  # changes given up: the vehicle did not answer
 
-    def want(self, uav_id: str, gate: Gate, speed_m_s: float | None = None) -> None:
-        """Bring the vehicle to `gate` (approaching at `speed_m_s`, a CREEP's)."""
+    def want(
+        self, uav_id: str, gate: Gate, speed_m_s: float | None = None, speed_first: bool = False
+    ) -> None:
+        """Bring the vehicle to `gate` (approaching at `speed_m_s`, a CREEP's; from a stop
+        given its speed first if `speed_first`: `Gatekeeper._speed_first`)."""
         self._wanted[uav_id] = gate
         if speed_m_s is not None:
             self._approach[uav_id] = speed_m_s
+        self._speed_first[uav_id] = speed_first
         task = self._tasks.get(uav_id)
         if task is None or task.done():
             self._tasks[uav_id] = asyncio.ensure_future(self._bring(uav_id))
@@ -376,7 +403,7 @@ class GateCommander:
         speed = self._approach.get(uav_id, self._rule.creep_m_s) if new == Gate.CREEP else None
         if speed is not None and old == Gate.STOP:
             self._slowed[uav_id] = math.nan  # unknown until the approach's speed is in
-            await actions.approach(speed)
+            await actions.approach(speed, self._speed_first.get(uav_id, False))
             self._slowed[uav_id] = speed
             return
         if old == Gate.STOP and actions.out_of_mission:

@@ -37,19 +37,21 @@ CONTINUE_IF_LANDING = 1 << 3
 RATE_WITHIN_S = 3.0
 TIMEOUT_RANGE_S = (2.0, 120.0)
 """FS_GCS_TIMEOUT's range (ArduCopter 4.3 on; before, the timeout was fixed at 5 s)."""
+FIXED_TIMEOUT_S = 5.0
 
 
 class FailsafeSetupError(GcsError):
     """The vehicle did not take its GCS failsafe: the flight must not start."""
 
 
-async def brake_on_link_loss(link: VehicleLink, brake_after_s: float) -> None:
+async def brake_on_link_loss(link: VehicleLink, brake_after_s: float) -> float | None:
     """Give the vehicle its GCS failsafe (ArduPilot only; a `brake_after_s` of 0 leaves
-    its parameters as they are); `FailsafeSetupError` if it does not take it."""
+    its parameters as they are); `FailsafeSetupError` if it does not take it. The
+    seconds of its own it flies on without us before it brakes, None if not known."""
     if brake_after_s <= 0 or link.autopilot != Autopilot.ARDUPILOT:
-        return
+        return None
     try:
-        await _set_failsafe(link, brake_after_s)
+        return await _set_failsafe(link, brake_after_s)
     except GcsError as exc:
         raise FailsafeSetupError(
             f"vehicle {link.sysid}: its brake on losing the ground station (GCS failsafe) "
@@ -57,7 +59,8 @@ async def brake_on_link_loss(link: VehicleLink, brake_after_s: float) -> None:
         ) from exc
 
 
-async def _set_failsafe(link: VehicleLink, brake_after_s: float) -> None:
+async def _set_failsafe(link: VehicleLink, brake_after_s: float) -> float:
+    timeout_s = FIXED_TIMEOUT_S
     if await find_parameter(link, ["FS_GCS_TIMEOUT"]) is not None:
         timeout_s = timeout_on_vehicle_s(await _clock_rate(link), brake_after_s)
         await set_parameter(link, "FS_GCS_TIMEOUT", timeout_s)
@@ -66,6 +69,7 @@ async def _set_failsafe(link: VehicleLink, brake_after_s: float) -> None:
     if found is not None and int(found[1]) & CONTINUE_IF_LANDING == 0:
         await set_parameter(link, "FS_OPTIONS", int(found[1]) | CONTINUE_IF_LANDING)
     await set_parameter(link, "FS_GCS_ENABLE", BRAKE_OR_LAND)
+    return timeout_s
 
 
 async def _clock_rate(link: VehicleLink) -> float:

@@ -188,6 +188,10 @@ FOUND_LINK_DROPS = {
     "MISSION_CURRENT interval requests and their fallback were lost, so only positions "
     "streamed; an approach restarted the item last seen, 5 s old, and uav3 flew back to "
     "a waypoint it had passed, 1.67 m from uav4 waiting there",
+    (20276, 10.0, 12): "gap swap of 8 UAVs at 5 m/s, lossy links: uav7, sent on from a stop "
+    "3.1 m short of its limit, had its item made current and fell silent before its speed "
+    "came; it flew the item afresh at 5 m/s until its failsafe braked it, 1.3 m past its "
+    "limit, and uav1 passed 5.87 m from it. Where the room is short, the speed now goes first",
 }
 """Flights with a link drop (`--link-drops`), each with the drop's length it failed with
 (the seed draws its moment and vehicle) and the bound on UAVs it was drawn with."""

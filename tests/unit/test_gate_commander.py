@@ -38,7 +38,7 @@ class SlowLink:
         await self._send("resume")
         self.out_of_mission = False
 
-    async def approach(self, speed_m_s: float) -> None:
+    async def approach(self, speed_m_s: float, speed_first: bool = False) -> None:
         await self.change_speed(speed_m_s)
         await self.resume_mission()
 
@@ -101,7 +101,7 @@ class Recorder:
         self.sent.append("resume")
         self.out_of_mission = False
 
-    async def approach(self, speed_m_s: float) -> None:
+    async def approach(self, speed_m_s: float, speed_first: bool = False) -> None:
         await self.change_speed(speed_m_s)
         await self.resume_mission()
 

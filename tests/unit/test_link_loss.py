@@ -49,22 +49,24 @@ async def clock_runs_twice_as_fast(link: VehicleLink, peer: Peer) -> None:
 
 async def fly_with(
     values: dict[str, float], brake_after_s: float, refused: frozenset[str] = frozenset()
-) -> list[str]:
-    """The parameters a flight's upload sets on such an autopilot, in order."""
+) -> tuple[list[str], float | None]:
+    """The parameters a flight's upload sets on such an autopilot, in order, and how long
+    the vehicle is said to fly on unheard (its own seconds)."""
     link, peer = await linked(silent)
     peer.reply = parameters(peer, values, refused)
     await clock_runs_twice_as_fast(link, peer)  # a SITL at speed-up 2
     try:
-        await brake_on_link_loss(link, brake_after_s)
+        silent_s = await brake_on_link_loss(link, brake_after_s)
     finally:
         await link.close()
-    return [m.param_id for m in peer.sent("PARAM_SET")]
+    return [m.param_id for m in peer.sent("PARAM_SET")], silent_s
 
 
 async def test_an_arducopter_brakes_after_two_of_our_seconds_and_lands_on_if_landing() -> None:
     values = {"FS_GCS_ENABLE": 0.0, "FS_GCS_TIMEOUT": 5.0, "FS_OPTIONS": 16.0}
-    sets = await fly_with(values, 2.0)
+    sets, silent_s = await fly_with(values, 2.0)
     assert sets == ["FS_GCS_TIMEOUT", "FS_OPTIONS", "FS_GCS_ENABLE"]  # enabled last
+    assert silent_s == 4.0
     assert values == {"FS_GCS_ENABLE": 7.0, "FS_GCS_TIMEOUT": 4.0, "FS_OPTIONS": 24.0}
 
 
@@ -72,13 +74,13 @@ async def test_what_is_there_already_or_not_there_is_left_as_it_is() -> None:
     """Options that let landings go on already are not set again; firmware before
     FS_GCS_TIMEOUT (ArduCopter 4.2 and older) keeps its fixed 5 s."""
     values = {"FS_GCS_ENABLE": 0.0, "FS_OPTIONS": 8.0}
-    assert await fly_with(values, 2.0) == ["FS_GCS_ENABLE"]
+    assert await fly_with(values, 2.0) == (["FS_GCS_ENABLE"], 5.0)
     assert values == {"FS_GCS_ENABLE": 7.0, "FS_OPTIONS": 8.0}
 
 
 async def test_zero_seconds_leave_the_vehicles_own_failsafe_alone() -> None:
     values = {"FS_GCS_ENABLE": 0.0, "FS_GCS_TIMEOUT": 5.0, "FS_OPTIONS": 16.0}
-    assert await fly_with(values, 0.0) == []
+    assert await fly_with(values, 0.0) == ([], None)
 
 
 async def test_a_vehicle_that_does_not_take_it_refuses_the_flight() -> None:
