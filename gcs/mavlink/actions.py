@@ -344,7 +344,9 @@ class FlightActions:
         `speed_first`: the speed goes before the item is made current, so that the
         vehicle sets off no faster should the link fall silent between the two (SITL:
         at most 1.04 m/s for 1 m/s from a standstill, where the item first surged to
-        4.5 m/s); slower, so only where the room is short (`Gatekeeper._speed_first`)."""
+        4.5 m/s); slower, so only where the room is short (`Gatekeeper._speed_first`).
+        Not for one braked out of its mission: ArduCopter takes no speed in BRAKE, and
+        AUTO forgets one."""
         seq = self.link.state.mission_seq
         item = max(seq, self.first_leg_seq)
         mission = self.mission if self.link.autopilot == Autopilot.ARDUPILOT else None
